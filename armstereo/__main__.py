@@ -1,0 +1,5 @@
+import sys
+
+from armstereo.cli.main import main
+
+sys.exit(main())

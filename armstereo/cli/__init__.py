@@ -1,0 +1,1 @@
+"""The ``armstereo`` command line: one console script with subcommands."""

@@ -1,0 +1,100 @@
+"""Camera mounts: where the camera sits on the flange (hand-eye) and its intrinsics.
+
+A mount file is TOML::
+
+    name = "default_wrist_camera"
+    [hand_eye]                       # T_flange_camera: camera_optical frame in tool0
+    translation = [0.0, -0.07, 0.04] # metres
+    rotation_rpy = [0.0, 0.0, 0.0]   # radians, R = Rz(yaw) Ry(pitch) Rx(roll)
+    [camera]
+    width = 640
+    height = 480
+    K = [[600.0, 0.0, 319.5], [0.0, 600.0, 239.5], [0.0, 0.0, 1.0]]
+    dist = [0.0, 0.0, 0.0, 0.0, 0.0]
+
+``rotation_matrix = [[...], [...], [...]]`` may replace ``rotation_rpy``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from armstereo.camera_model import Intrinsics
+from armstereo.errors import ArmstereoError, ConfigError
+from armstereo.transforms import make_T, rot_x, rot_y, rot_z
+from robot_models import MOUNTS_DIR
+
+DEFAULT_MOUNT = "default_wrist_camera"
+
+
+@dataclass(frozen=True)
+class CameraMount:
+    """A camera on the flange: ``T_flange_camera`` (tool0 -> camera_optical) and intrinsics."""
+
+    name: str
+    T_flange_camera: np.ndarray
+    intrinsics: Intrinsics
+    source: str = ""  # the file's text, stored in recordings
+
+    @classmethod
+    def load(cls, name_or_path: str | Path | None = None) -> CameraMount:
+        """Load a mount by file path or by the name of a file in ``robot_models/mounts/``."""
+        path = resolve_mount_path(name_or_path)
+        text = path.read_text()
+        try:
+            doc = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as err:
+            raise ConfigError(f"mount file {path} is not valid TOML: {err}") from None
+        try:
+            return cls.from_dict(doc, source=text)
+        except ArmstereoError as err:
+            raise ConfigError(f"mount file {path}: {err}") from None
+        except (KeyError, TypeError, ValueError) as err:
+            raise ConfigError(f"mount file {path}: missing or malformed entry ({err})") from None
+
+    @classmethod
+    def from_dict(cls, doc: dict, source: str = "") -> CameraMount:
+        """Build a mount from the parsed TOML structure documented in this module."""
+        he = doc["hand_eye"]
+        t = np.asarray(he["translation"], dtype=float)
+        if "rotation_matrix" in he:
+            R = np.asarray(he["rotation_matrix"], dtype=float)
+            if R.shape != (3, 3) or not np.allclose(R @ R.T, np.eye(3), atol=1e-6):
+                raise ConfigError("hand_eye.rotation_matrix must be a 3x3 rotation")
+        else:
+            roll, pitch, yaw = (float(v) for v in he.get("rotation_rpy", [0.0, 0.0, 0.0]))
+            R = rot_z(yaw) @ rot_y(pitch) @ rot_x(roll)
+        if t.shape != (3,):
+            raise ConfigError("hand_eye.translation must have 3 numbers")
+        cam = doc["camera"]
+        intr = Intrinsics(
+            width=int(cam["width"]),
+            height=int(cam["height"]),
+            K=np.asarray(cam["K"], dtype=float),
+            dist=np.asarray(cam.get("dist", [0.0] * 5), dtype=float),
+        )
+        return cls(name=str(doc.get("name", "mount")), T_flange_camera=make_T(R, t),
+                   intrinsics=intr, source=source)
+
+    @property
+    def sha256(self) -> str:
+        return hashlib.sha256(self.source.encode()).hexdigest()
+
+
+def resolve_mount_path(name_or_path: str | Path | None) -> Path:
+    """Path of a mount file given a path, a bundled mount's name, or None (the default)."""
+    if name_or_path is None:
+        name_or_path = DEFAULT_MOUNT
+    p = Path(name_or_path)
+    if p.is_file():
+        return p
+    bundled = MOUNTS_DIR / f"{p.name.removesuffix('.toml')}.toml"
+    if bundled.is_file():
+        return bundled
+    known = ", ".join(sorted(f.stem for f in MOUNTS_DIR.glob("*.toml")))
+    raise ConfigError(f"no mount file {name_or_path!s} (bundled mounts: {known})")

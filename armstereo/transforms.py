@@ -1,0 +1,120 @@
+"""Rigid transforms as 4x4 float64 arrays.
+
+Naming: ``T_a_b`` maps points in frame b to frame a (the pose of b in a). UR's 6-vector poses
+``[x, y, z, rx, ry, rz]`` (metres, axis-angle rotation vector) are converted only here and in
+the UR driver.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def make_T(R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """4x4 transform from a 3x3 rotation and a 3-vector translation (metres)."""
+    T = np.eye(4)
+    T[:3, :3] = np.asarray(R, dtype=float)
+    T[:3, 3] = np.asarray(t, dtype=float).reshape(3)
+    return T
+
+
+def invert(T: np.ndarray) -> np.ndarray:
+    """Inverse of a rigid 4x4 transform (T_b_a from T_a_b)."""
+    R = T[:3, :3]
+    return make_T(R.T, -R.T @ T[:3, 3])
+
+
+def transform_points(T_a_b: np.ndarray, p_b: np.ndarray) -> np.ndarray:
+    """Map Nx3 points from frame b to frame a."""
+    p_b = np.asarray(p_b, dtype=float)
+    return p_b @ T_a_b[:3, :3].T + T_a_b[:3, 3]
+
+
+def rotvec_to_matrix(rotvec: np.ndarray) -> np.ndarray:
+    """Rodrigues: axis-angle rotation vector (radians) to a 3x3 rotation matrix."""
+    r = np.asarray(rotvec, dtype=float).reshape(3)
+    theta = float(np.linalg.norm(r))
+    if theta < 1e-12:
+        return np.eye(3)
+    k = r / theta
+    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + np.sin(theta) * K + (1 - np.cos(theta)) * (K @ K)
+
+
+def matrix_to_rotvec(R: np.ndarray) -> np.ndarray:
+    """3x3 rotation matrix to an axis-angle rotation vector; stable near 0 and near pi."""
+    R = np.asarray(R, dtype=float)
+    cos_theta = np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)
+    theta = float(np.arccos(cos_theta))
+    if theta < 1e-9:
+        return np.zeros(3)
+    if np.pi - theta < 1e-6:
+        # Near pi the antisymmetric part vanishes; take the axis from the symmetric part.
+        B = (R + np.eye(3)) / 2.0
+        i = int(np.argmax(np.diag(B)))
+        axis = B[:, i] / np.sqrt(B[i, i])
+        return axis * theta
+    w = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    return w * (theta / (2.0 * np.sin(theta)))
+
+
+def T_from_ur_pose(pose: np.ndarray) -> np.ndarray:
+    """UR pose ``[x, y, z, rx, ry, rz]`` (metres, rotation vector) to a 4x4 transform."""
+    pose = np.asarray(pose, dtype=float).reshape(6)
+    return make_T(rotvec_to_matrix(pose[3:]), pose[:3])
+
+
+def ur_pose_from_T(T: np.ndarray) -> np.ndarray:
+    """4x4 transform to a UR pose ``[x, y, z, rx, ry, rz]``."""
+    return np.concatenate([T[:3, 3], matrix_to_rotvec(T[:3, :3])])
+
+
+def quaternion_xyzw(R: np.ndarray) -> np.ndarray:
+    """3x3 rotation to a unit quaternion (x, y, z, w), w >= 0 (Foxglove's order)."""
+    R = np.asarray(R, dtype=float)
+    tr = np.trace(R)
+    if tr > 0:
+        s = 2.0 * np.sqrt(tr + 1.0)
+        q = [(R[2, 1] - R[1, 2]) / s, (R[0, 2] - R[2, 0]) / s, (R[1, 0] - R[0, 1]) / s, s / 4]
+    elif R[0, 0] > R[1, 1] and R[0, 0] > R[2, 2]:
+        s = 2.0 * np.sqrt(1.0 + R[0, 0] - R[1, 1] - R[2, 2])
+        q = [s / 4, (R[0, 1] + R[1, 0]) / s, (R[0, 2] + R[2, 0]) / s, (R[2, 1] - R[1, 2]) / s]
+    elif R[1, 1] > R[2, 2]:
+        s = 2.0 * np.sqrt(1.0 + R[1, 1] - R[0, 0] - R[2, 2])
+        q = [(R[0, 1] + R[1, 0]) / s, s / 4, (R[1, 2] + R[2, 1]) / s, (R[0, 2] - R[2, 0]) / s]
+    else:
+        s = 2.0 * np.sqrt(1.0 + R[2, 2] - R[0, 0] - R[1, 1])
+        q = [(R[0, 2] + R[2, 0]) / s, (R[1, 2] + R[2, 1]) / s, s / 4, (R[1, 0] - R[0, 1]) / s]
+    q = np.asarray(q)
+    q /= np.linalg.norm(q)
+    return -q if q[3] < 0 else q
+
+
+def matrix_from_quaternion_xyzw(q: np.ndarray) -> np.ndarray:
+    """Unit quaternion (x, y, z, w) to a 3x3 rotation matrix."""
+    x, y, z, w = np.asarray(q, dtype=float) / np.linalg.norm(q)
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def rot_x(a: float) -> np.ndarray:
+    """Rotation by ``a`` radians about x."""
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+
+
+def rot_y(a: float) -> np.ndarray:
+    """Rotation by ``a`` radians about y."""
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+
+
+def rot_z(a: float) -> np.ndarray:
+    """Rotation by ``a`` radians about z."""
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
