@@ -8,8 +8,9 @@ import pytest
 def pytest_addoption(parser: pytest.Parser) -> None:
     parser.addoption("--ur-host", default=None,
                      help="IP of a real UR controller; enables tests marked 'hardware'")
-    parser.addoption("--camera", default=None,
-                     help="OpenCV camera for hardware tests, e.g. 0 or /dev/video0")
+    parser.addoption("--ur-model", default="ur5e", help="robot model of the --ur-host arm")
+    parser.addoption("--ur-allow-motion", action="store_true", default=False,
+                     help="let hardware tests move the arm (10 mm guarded move; clear workspace)")
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
