@@ -1,0 +1,113 @@
+"""Summaries of a recording for ``armstereo inspect``: a stable JSON form and a text form.
+
+The JSON keys are part of the documented interface (README, "Recordings"); add keys, never rename
+or remove them.
+"""
+
+from __future__ import annotations
+
+from armstereo.errors import RecordingError
+from armstereo.recording.reader import Recording, View
+
+MULTILINE_PREVIEW = 1  # text form: multi-line metadata values show their line count only
+
+
+def summarize(rec: Recording) -> dict:
+    """The JSON-ready summary of an opened recording (keys documented in the README)."""
+    return {
+        "file": str(rec.path),
+        "size_bytes": rec.size_bytes,
+        "indexed": rec.indexed,
+        "truncated": rec.truncated,
+        "duration_s": rec.duration_s,
+        "views": len(rec.views),
+        "channels": [{"topic": c.topic, "schema": c.schema, "encoding": c.encoding,
+                      "messages": c.messages} for c in rec.channels],
+        "pairs": [_pair_entry(rec, event) for event in rec.pair_events],
+        "calibration": _calibration_entry(rec),
+        "metadata": dict(rec.metadata),
+        "warnings": list(rec.warnings),
+    }
+
+
+def _pair_entry(rec: Recording, event: dict) -> dict:
+    views = {v.index: v for v in rec.views}
+    left, right = views.get(event["left_view"]), views.get(event["right_view"])
+    return {
+        "pair": event["pair"], "left_view": event["left_view"],
+        "right_view": event["right_view"],
+        "commanded_baseline_m": event["commanded_baseline_m"],
+        "achieved_baseline_m": event["achieved_baseline_m"],
+        "direction": event["direction"],
+        "complete": left is not None and right is not None,
+        "image_size": _image_size(left) if left is not None else None,
+    }
+
+
+def _image_size(view: View) -> list[int] | None:
+    if view.image_size is not None:
+        return list(view.image_size)
+    try:  # a format whose header we do not parse: decode it
+        h, w = view.image.shape[:2]
+    except RecordingError:
+        return None
+    return [w, h]
+
+
+def _calibration_entry(rec: Recording) -> dict | None:
+    intr = rec.calibration
+    if intr is None:
+        return None
+    info = rec.calibration_info or {}
+    return {"width": intr.width, "height": intr.height, "fx": intr.fx, "fy": intr.fy,
+            "cx": intr.cx, "cy": intr.cy, "distortion_model": info.get("distortion_model", ""),
+            "D": [float(d) for d in intr.dist], "frame_id": info.get("frame_id", "")}
+
+
+def format_text(summary: dict) -> str:
+    """Human-readable form of :func:`summarize`'s result."""
+    lines = [_headline(summary), "channels:"]
+    rows = [(c["topic"], c["schema"], c["encoding"], str(c["messages"]))
+            for c in summary["channels"]]
+    widths = [max([len(h)] + [len(r[i]) for r in rows])
+              for i, h in enumerate(("topic", "schema", "encoding", "messages"))]
+    for row in [("topic", "schema", "encoding", "messages"), *rows]:
+        lines.append("  " + "  ".join(cell.ljust(w) if i < 3 else cell.rjust(w)
+                                      for i, (cell, w) in enumerate(zip(row, widths,
+                                                                        strict=True))))
+    lines.append(f"views: {summary['views']} complete")
+    lines.append(f"pairs: {len(summary['pairs'])}")
+    lines.extend("  " + _pair_line(p) for p in summary["pairs"])
+    lines.append("calibration: " + _calibration_line(summary["calibration"]))
+    lines.append("metadata:" if summary["metadata"] else "metadata: none")
+    for key, value in summary["metadata"].items():
+        if value.count("\n") >= MULTILINE_PREVIEW:
+            value = f"({value.count(chr(10)) + 1} lines; see --json)"
+        lines.append(f"  {key}: {value}")
+    lines.append(f"warnings: {len(summary['warnings'])}" if summary["warnings"]
+                 else "warnings: none")
+    lines.extend(f"  - {w}" for w in summary["warnings"])
+    return "\n".join(lines)
+
+
+def _headline(s: dict) -> str:
+    state = ("indexed" if s["indexed"] else "no index") + (", truncated" if s["truncated"]
+                                                            else "")
+    duration = "no messages" if s["duration_s"] is None else f"{s['duration_s']:.3f} s"
+    return f"{s['file']}: {s['size_bytes'] / 1e6:.2f} MB, {state}, {duration}"
+
+
+def _pair_line(p: dict) -> str:
+    size = "incomplete" if not p["complete"] else (
+        f"{p['image_size'][0]}x{p['image_size'][1]}" if p["image_size"] else "size unknown")
+    return (f"pair {p['pair']}: views {p['left_view']},{p['right_view']}  commanded "
+            f"{p['commanded_baseline_m'] * 1000:.3f} mm  achieved "
+            f"{p['achieved_baseline_m'] * 1000:.3f} mm  direction {p['direction']}  {size}")
+
+
+def _calibration_line(c: dict | None) -> str:
+    if c is None:
+        return "none"
+    dist = "no distortion" if not any(c["D"]) else "D " + ", ".join(f"{d:.4g}" for d in c["D"])
+    return (f"{c['width']}x{c['height']}  fx {c['fx']:.2f}  fy {c['fy']:.2f}  cx {c['cx']:.2f}  "
+            f"cy {c['cy']:.2f}  {c['distortion_model']} ({dist})")
