@@ -1,0 +1,112 @@
+"""Mock camera: renders the synthetic scene from wherever the arm has put the camera.
+
+It pairs with any arm backend: ``pose_source`` returns ``T_base_camera`` (camera_optical in the
+controller's base frame), normally ``lambda: model.camera_pose(arm.joint_positions())``, i.e.
+forward kinematics of the arm's *actual* joints at exposure. Each frame carries the exact
+ground-truth z-depth (metres, float32, NaN = nothing hit).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+from armstereo.camera_model import Intrinsics
+from armstereo.errors import CameraTimeout, ConfigError, HardwareError
+from drivers.base import Camera, Frame
+from drivers.clock import Clock, SimClock
+from drivers.mock.faults import FaultPlan
+from drivers.mock.scene import Scene, default_table_scene
+
+log = logging.getLogger(__name__)
+
+DEFAULT_FRAME_PERIOD_S = 1 / 30  # a grab waits for the next exposure
+
+
+class MockCamera(Camera):
+    """A camera that ray-casts ``scene`` (default: :func:`default_table_scene`).
+
+    ``noise_sigma`` adds seeded Gaussian sensor noise (grey levels, per channel) to each frame;
+    ``faults`` may time out a given grab (``camera-timeout@N``). Each grab advances ``clock``
+    by ``frame_period`` (the wait for the next exposure) and stamps the frame at its exposure.
+    """
+
+    def __init__(self, intrinsics: Intrinsics, pose_source: Callable[[], np.ndarray], *,
+                 scene: Scene | None = None, clock: Clock | None = None,
+                 noise_sigma: float = 0.0, seed: int = 0, faults: FaultPlan | None = None,
+                 supersample: int = 2, frame_period: float = DEFAULT_FRAME_PERIOD_S,
+                 name: str = "mock camera"):
+        if not isinstance(intrinsics, Intrinsics):
+            raise ConfigError(f"{name}: intrinsics must be an Intrinsics, got "
+                              f"{type(intrinsics).__name__}")
+        if not callable(pose_source):
+            raise ConfigError(f"{name}: pose_source must be a callable returning T_base_camera")
+        if not (math.isfinite(noise_sigma) and noise_sigma >= 0):
+            raise ConfigError(f"{name}: noise_sigma must be >= 0 grey levels, got {noise_sigma}")
+        if not (math.isfinite(frame_period) and frame_period >= 0):
+            raise ConfigError(f"{name}: frame_period must be >= 0 s, got {frame_period}")
+        self._intrinsics = intrinsics
+        self._pose_source = pose_source
+        self.scene = default_table_scene() if scene is None else scene
+        self.clock = SimClock() if clock is None else clock
+        self.noise_sigma = float(noise_sigma)
+        self.faults = faults if faults is not None else FaultPlan()
+        self.supersample = supersample
+        self.frame_period = float(frame_period)
+        self.name = name
+        self.grabs = 0  # grabs attempted since construction (fault counter, 1-based)
+        self._rng = np.random.default_rng(seed)
+        self._connected = False
+        self._last_depth: np.ndarray | None = None
+
+    def connect(self) -> None:
+        """Open the (simulated) device; raises HardwareError if it is already open."""
+        if self._connected:
+            raise HardwareError(f"{self.name}: already connected")
+        self._connected = True
+
+    def close(self) -> None:
+        self._connected = False
+
+    @property
+    def is_connected(self) -> bool:
+        return self._connected
+
+    @property
+    def intrinsics(self) -> Intrinsics:
+        return self._intrinsics
+
+    @property
+    def ground_truth_depth(self) -> np.ndarray | None:
+        """z-depth (H, W) float32 metres of the last frame delivered, NaN = nothing hit."""
+        return self._last_depth
+
+    def grab(self, timeout: float = 2.0) -> Frame:
+        """Render a frame from the current camera pose.
+
+        Raises CameraTimeout (naming the camera) for an injected ``camera-timeout`` after
+        waiting ``timeout`` seconds on the clock, HardwareError when not connected.
+        """
+        if not self._connected:
+            raise HardwareError(f"{self.name}: not connected; call connect() first")
+        if not (math.isfinite(timeout) and timeout > 0):
+            raise ConfigError(f"{self.name}: grab timeout must be > 0 s, got {timeout}")
+        self.grabs += 1
+        fault = self.faults.grab_fault(self.grabs)
+        if fault is not None and fault.name == "camera-timeout":
+            log.info("%s: injecting %s", self.name, fault)
+            self.clock.sleep(timeout)
+            raise CameraTimeout(f"{self.name}: no frame within {timeout:g} s timeout "
+                                f"(grab {self.grabs}, injected {fault.name})")
+        self.clock.sleep(self.frame_period)
+        stamp = self.clock.now_ns()
+        image, depth = self.scene.render(self._pose_source(), self._intrinsics,
+                                         supersample=self.supersample)
+        if self.noise_sigma > 0:
+            noisy = image + self._rng.normal(0.0, self.noise_sigma, image.shape)
+            image = np.clip(np.rint(noisy), 0, 255).astype(np.uint8)
+        self._last_depth = depth
+        return Frame(image=image, timestamp_ns=stamp, depth=depth)
