@@ -97,7 +97,7 @@ class CaptureSettings:
     limits: MotionLimits = field(default_factory=MotionLimits)
     joint_margin: float = 0.05
     min_sigma: float = 0.02
-    max_joint_travel: float = 0.6  # per baseline move, any joint
+    max_joint_travel: float = 1.0  # per baseline move, any joint (catches branch flips)
     path_step: float = 0.005
     workspace: Workspace | None = None  # None: Workspace.around(model)
 

@@ -94,7 +94,7 @@ def _record_pair(writer, plan: CapturePlan, k: int, prev: np.ndarray, cur: np.nd
     pr = PairResult(k - 1, k - 1, k, plan.settings.baseline, achieved)
     writer.write_pair(pr.pair, pr.left_view, pr.right_view, pr.commanded_m, pr.achieved_m,
                       plan.settings.direction_label)
-    log.info("pair %d: baseline commanded %.2f mm, achieved %.3f mm", pr.pair,
+    log.debug("pair %d: baseline commanded %.2f mm, achieved %.3f mm", pr.pair,
              pr.commanded_m * 1000, pr.achieved_m * 1000)
     return pr
 

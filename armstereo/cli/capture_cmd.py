@@ -103,7 +103,7 @@ def settings_from_args(args: argparse.Namespace, model: ArmModel) -> CaptureSett
 
 
 def capture_to_file(arm, camera, model, plan, out: Path, metadata: dict[str, str],
-                    image_format: str = "png") -> CaptureResult:
+                    image_format: str = "png", progress=log.info) -> CaptureResult:
     """Run the capture into ``out``; the file is finished whatever happens (even SIGTERM)."""
     from armstereo.recording import RecordingWriter
 
@@ -111,7 +111,7 @@ def capture_to_file(arm, camera, model, plan, out: Path, metadata: dict[str, str
     with _sigterm_as_interrupt(), RecordingWriter(out, metadata=metadata,
                                                   image_format=image_format) as writer:
         try:
-            run_capture(arm, camera, model, plan, writer, progress=log.info, result=result)
+            run_capture(arm, camera, model, plan, writer, progress=progress, result=result)
         except ArmstereoError as err:
             err.args = (f"{err}; {result.views} view(s) kept in {out}",)
             raise

@@ -1,0 +1,77 @@
+"""``armstereo demo``: the whole chain on the mock backends, scored against ground truth."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+from armstereo.demo import DEFAULT_BASELINE_M, DEMO_FILES, DemoOptions, run_demo
+from armstereo.errors import ConfigError
+
+TARGET_MEDIAN_REL_ERROR = 0.005
+TARGET_DENSITY = 0.90
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("demo", help="capture, reconstruct and score a table scene (no hardware)",
+                       description="Capture a table scene with the mock UR5e and mock camera, "
+                       "reconstruct it and score the depth against the exact ground truth.")
+    p.add_argument("--out", default=None,
+                   help="output folder (default: a fresh ./armstereo-demo-<time> folder)")
+    p.add_argument("--baseline", type=float, default=DEFAULT_BASELINE_M,
+                   help=f"camera move between the two views (m, default {DEFAULT_BASELINE_M})")
+    p.add_argument("--method", choices=["birchfield", "sgbm"], default="birchfield",
+                   help="stereo matcher (default birchfield)")
+    p.add_argument("--robot", default="ur5e", help="mock arm model (default ur5e)")
+    p.add_argument("--seed", type=int, default=0, help="scene and noise seed")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    out = _out_dir(args.out)
+    progress(f"armstereo demo -> {out}/")
+    report = run_demo(out, DemoOptions(robot=args.robot, baseline=args.baseline,
+                                       method=args.method, seed=args.seed), progress)
+    _print_summary(report, out)
+    return 0
+
+
+def progress(text: str) -> None:
+    """Progress goes to stderr so stdout carries only the summary."""
+    print(text, file=sys.stderr, flush=True)
+
+
+def _out_dir(text: str | None) -> Path:
+    if text is None:
+        out = Path(f"armstereo-demo-{time.strftime('%Y%m%d-%H%M%S')}")
+        n = 1
+        while out.exists():
+            n += 1
+            out = Path(f"armstereo-demo-{time.strftime('%Y%m%d-%H%M%S')}-{n}")
+        return out
+    out = Path(text)
+    if out.exists() and not out.is_dir():
+        raise ConfigError(f"--out {out} exists and is not a folder")
+    clash = [f for f in DEMO_FILES if (out / f).exists()]
+    if clash:
+        raise ConfigError(f"--out {out} already holds demo files ({', '.join(clash)}); "
+                          "choose an empty folder")
+    return out
+
+
+def _print_summary(report: dict, out: Path) -> None:
+    acc, t = report["accuracy"], report["timings_s"]
+    stages = ", ".join(f"{k} {v:.2f} s" for k, v in t.items() if k != "total")
+    ok_err = acc["median_abs_rel_depth_error"] <= TARGET_MEDIAN_REL_ERROR
+    ok_den = acc["density"] >= TARGET_DENSITY
+    print(f"points:   {report['points']:,}")
+    print(f"time:     {t['total']:.1f} s ({stages})")
+    print(f"accuracy: median depth error {acc['median_abs_rel_depth_error'] * 100:.3f} % "
+          f"(target <= {TARGET_MEDIAN_REL_ERROR * 100:.1f} %: {'met' if ok_err else 'MISSED'}), "
+          f"{acc['within_1pct'] * 100:.1f} % of pixels within 1 %, "
+          f"density {acc['density'] * 100:.1f} % (target >= {TARGET_DENSITY * 100:.0f} %: "
+          f"{'met' if ok_den else 'MISSED'})")
+    print(f"files:    {out}/ points.ply disparity.png rectified.png depth_error.png "
+          "report.json demo.mcap reconstruction.mcap")

@@ -1,0 +1,157 @@
+"""``armstereo sweep``: the TASER baseline experiment, on the mock or on a real arm."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from armstereo import __version__
+from armstereo.capture import CaptureSettings, plan_capture
+from armstereo.capture.backends import build_arm, build_camera, sweep_start_configuration
+from armstereo.cli.capture_cmd import _confirm_motion, add_backend_args, capture_to_file
+from armstereo.errors import ConfigError
+from armstereo.kinematics import ArmModel
+from armstereo.mount import CameraMount
+from armstereo.pipeline import reconstruct_pair
+from armstereo.recording import Recording
+from armstereo.sweep import Target, best_baseline, format_table, plot, run_sweep, write_csv
+
+DEFAULT_BASELINES = "0.025,0.05,0.075,0.1,0.15,0.2,0.3"
+DEFAULT_DISTANCES = "0.8,1.1,1.4,1.7,2.0,2.2"
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("sweep", help="measure planar targets with several baselines",
+                       description="Reproduce the TASER experiment: planar targets at known "
+                       "distances, one capture per baseline, measured against the truth.")
+    p.add_argument("--baselines", default=DEFAULT_BASELINES,
+                   help=f"comma-separated baselines in m (default {DEFAULT_BASELINES})")
+    p.add_argument("--distances", default=DEFAULT_DISTANCES,
+                   help="mock only: target distances in m (default " + DEFAULT_DISTANCES + ")")
+    p.add_argument("--target", action="append", default=[], metavar="U0,V0,U1,V1=DIST",
+                   help="real arm: a target's pixel box in the first view and its measured "
+                   "distance (m); repeat for each target")
+    p.add_argument("--out", default=None, help="output folder (default ./armstereo-sweep-<time>)")
+    p.add_argument("--method", choices=["birchfield", "sgbm"], default="birchfield")
+    p.add_argument("--speed", type=float, default=0.05, help="linear speed cap (m/s)")
+    p.add_argument("--settle", type=float, default=0.5, help="settle time before a shot (s)")
+    p.add_argument("--yes", action="store_true", help="allow live motion without asking")
+    add_backend_args(p)
+    # A real sensor is never noise free; the sweep's shape depends on it.
+    p.set_defaults(func=run, camera_noise=2.0)
+
+
+def run(args: argparse.Namespace) -> int:
+    baselines = _floats(args.baselines, "--baselines")
+    if args.arm != "mock" and not args.target:
+        raise ConfigError("a sweep on a real arm needs --target U0,V0,U1,V1=DIST for each "
+                          "target you placed and measured")
+    out = Path(args.out or f"armstereo-sweep-{time.strftime('%Y%m%d-%H%M%S')}")
+    model = ArmModel.load(args.robot, mount=CameraMount.load(args.mount))
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise ConfigError(f"cannot create output folder {out}: {err.strerror}") from None
+    if args.arm == "mock":
+        capture_one = _mock_capture(args, model, baselines, out)
+    else:
+        capture_one = _live_capture(args, model, out)
+    results = run_sweep(baselines, capture_one,
+                        lambda s: print(s, file=sys.stderr, flush=True))
+    write_csv(out / "sweep.csv", results)
+    plot(out / "sweep.png", results, f"armstereo sweep ({args.arm} {model.name}, {args.method})")
+    print("\n".join(format_table(results)))
+    best = best_baseline(results)
+    span = f"{min(m.true_distance_m for m in results):g}-" \
+           f"{max(m.true_distance_m for m in results):g} m"
+    print(f"best baseline for {span}: " + (f"{best * 100:g} cm" if best is not None else
+                                           "none measured every target"))
+    print(f"files: {out}/sweep.csv {out}/sweep.png and one recording per baseline")
+    return 0
+
+
+def _floats(text: str, flag: str) -> list[float]:
+    try:
+        values = [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        values = []
+    if not values or any(not (v > 0) for v in values):
+        raise ConfigError(f"{flag} must be positive numbers separated by commas, not {text!r}")
+    return values
+
+
+def _settings(args: argparse.Namespace, b: float) -> CaptureSettings:
+    from drivers.base import MotionLimits
+
+    return CaptureSettings(baseline=b, direction=np.array([1.0, 0.0, 0.0]), pairs=1,
+                           settle_s=args.settle, limits=MotionLimits(linear_speed=args.speed))
+
+
+def _reconstruct(path: Path, args, near: float, far: float):
+    pair = Recording.open(path)[0]
+    recon = reconstruct_pair(pair, method=args.method, near=near, far=far)
+    return recon, pair
+
+
+def _mock_capture(args, model: ArmModel, baselines: list[float], out: Path):
+    from drivers.mock.scene import planar_target_scene
+
+    distances = _floats(args.distances, "--distances")
+    q0 = sweep_start_configuration(model)
+    ts = planar_target_scene(distances, model.camera_pose(q0), model.mount.intrinsics,
+                             max_baseline=max(baselines), seed=args.seed)
+    targets = [Target(t.distance, t.pixel_box) for t in ts.targets]
+    near, far = 0.85 * min(distances), 1.15 * max(distances)
+
+    def capture_one(b: float):
+        arm = build_arm("mock", model, q0=q0, joint_noise=args.joint_noise, seed=args.seed)
+        path = out / f"sweep_b{b * 1000:.0f}mm.mcap"
+        with arm:
+            plan = plan_capture(model, arm.joint_positions(), _settings(args, b))
+            plan.require_ok()
+            cam = build_camera("mock", model, arm, scene=ts.scene, noise=args.camera_noise,
+                               seed=args.seed)
+            with cam:
+                capture_to_file(arm, cam, model, plan, path, _meta(args, model, b),
+                                progress=None)
+        recon, pair = _reconstruct(path, args, near, far)
+        return recon.depth_original, targets, pair.left.depth
+
+    return capture_one
+
+
+def _live_capture(args, model: ArmModel, out: Path):
+    targets = [Target.parse(t) for t in args.target]
+    near = 0.85 * min(t.distance for t in targets)
+    far = 1.15 * max(t.distance for t in targets)
+    confirmed = False
+
+    def capture_one(b: float):
+        nonlocal confirmed
+        arm = build_arm(args.arm, model, host=args.host)
+        path = out / f"sweep_b{b * 1000:.0f}mm.mcap"
+        with arm:
+            arm.require_ok()
+            plan = plan_capture(model, arm.joint_positions(), _settings(args, b))
+            plan.require_ok()
+            if not confirmed:
+                _confirm_motion(args)
+                confirmed = True
+            with build_camera(args.camera, model, arm) as cam:
+                capture_to_file(arm, cam, model, plan, path, _meta(args, model, b),
+                                progress=None)
+        recon, _ = _reconstruct(path, args, near, far)
+        return recon.depth_original, targets, None
+
+    return capture_one
+
+
+def _meta(args, model: ArmModel, b: float) -> dict[str, str]:
+    return {"armstereo_version": __version__, "robot": model.name,
+            "urdf_sha256": model.urdf_sha256, "mount": model.mount.name,
+            "mount_toml": model.mount.source, "arm": args.arm, "camera": args.camera,
+            "baseline_m": repr(b), "direction": "x", "pairs": "1", "source": "armstereo sweep"}

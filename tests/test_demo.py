@@ -1,0 +1,59 @@
+"""The demo runs end to end on the mock backends and its report is computed from ground truth."""
+
+from __future__ import annotations
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+
+from armstereo.cli.main import main
+from armstereo.demo import score_reconstruction
+from armstereo.pipeline import reconstruct_pair
+from armstereo.ply import read_ply
+from armstereo.recording import Recording
+
+
+@pytest.fixture(scope="module")
+def demo_dir(tmp_path_factory):
+    out = tmp_path_factory.mktemp("demo")
+    assert main(["demo", "--out", str(out)]) == 0
+    return out
+
+
+def test_demo_writes_every_file_and_a_complete_report(demo_dir):
+    report = json.loads((demo_dir / "report.json").read_text())
+    assert isinstance(report["points"], int) and report["points"] > 100_000
+    assert {"capture", "match", "total"} <= set(report["timings_s"])
+    acc = report["accuracy"]
+    for key in ("median_abs_rel_depth_error", "within_1pct", "density"):
+        assert isinstance(acc[key], float)
+    # The issue's targets on the default scene.
+    assert acc["median_abs_rel_depth_error"] <= 0.005
+    assert acc["density"] >= 0.90
+    for name in ("disparity.png", "rectified.png", "depth_error.png"):
+        img = cv2.imread(str(demo_dir / name))
+        assert img is not None and img.shape[0] > 100
+    assert len(read_ply(demo_dir / "points.ply").points) == report["points"]
+    assert len(Recording.open(demo_dir / "demo.mcap")) == 1
+
+
+def test_demo_accuracy_is_measured_against_ground_truth(demo_dir):
+    report = json.loads((demo_dir / "report.json").read_text())
+    pair = Recording.open(demo_dir / "demo.mcap")[0]
+    recon = reconstruct_pair(pair)
+    same = score_reconstruction(recon.depth_original, pair, swapped=recon.swapped)
+    assert same.median_abs_rel_depth_error == pytest.approx(
+        report["accuracy"]["median_abs_rel_depth_error"], rel=1e-6)
+    shifted = score_reconstruction(recon.depth_original * 1.01, pair, swapped=recon.swapped)
+    assert shifted.median_abs_rel_depth_error > 0.009
+    assert shifted.within_1pct < same.within_1pct
+    holes = recon.depth_original.copy()
+    holes[:, ::2] = np.nan
+    assert score_reconstruction(holes, pair, swapped=recon.swapped).density < 0.55
+
+
+def test_demo_refuses_a_folder_that_holds_a_previous_demo(demo_dir, capsys):
+    assert main(["demo", "--out", str(demo_dir)]) == 2
+    assert "already holds demo files" in capsys.readouterr().err
