@@ -119,7 +119,7 @@ def _mock_capture(args, model: ArmModel, baselines: list[float], out: Path):
                 capture_to_file(arm, cam, model, plan, path, _meta(args, model, b),
                                 progress=None)
         recon, pair = _reconstruct(path, args, near, far)
-        return recon.depth_original, targets, pair.left.depth
+        return recon.depth_original, targets, recon.depth_truth
 
     return capture_one
 

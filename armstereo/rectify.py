@@ -1,0 +1,557 @@
+"""Fusiello rectification of a stereo pair whose two camera poses are known.
+
+Fusiello, Trucco and Verri (2000) turn two projection matrices into two new ones that share
+orientation and intrinsics and differ only by a translation along the new x axis (the
+baseline), so epipolar lines become image rows. Conventions used here:
+
+* Projection matrices map ``base``-frame points (metres) to pixels; pixel centres sit at
+  integer coordinates (OpenCV's convention, so a 640x480 image's centre is (319.5, 239.5)).
+* ``v1 = c2 - c1`` (the RectifKit fix of the paper's printed sign): camera 1 is the left one,
+  disparities ``d = x_left - x_right`` are positive and ``Z = fx * b / (d - (cx1 - cx2))``.
+* The new intrinsics have zero skew and square pixels (``fx == fy``) unless asked otherwise, so
+  the standard Q matrix holds (the averaged A of the paper has fx != fy, see algorithms.md 1.6).
+* Homographies ``H`` map original pixels to rectified pixels and include the centering of the
+  warped images (RectifKit) and the shared canvas offset; they describe a distortion-free
+  pinhole. :func:`rectify_pair` removes lens distortion in the same ``cv2.remap``.
+* Any baseline direction works. :func:`rectify_pair` picks as "left" the view from which the
+  other one lies at an image-plane angle in (-90, 90] deg, so the rectified images are rotated
+  by at most 90 deg (a vertical baseline gives images rotated by 90 deg; rows are still the
+  epipolar lines and the matcher runs along rows).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, replace
+from typing import NamedTuple
+
+import cv2
+import numpy as np
+
+from armstereo.camera_model import Intrinsics
+from armstereo.errors import StereoError
+from armstereo.transforms import make_T
+
+log = logging.getLogger(__name__)
+
+MIN_BASELINE_ANGLE_DEG = 5.0  # below this angle to the optical axis the problem is degenerate
+MAX_CANVAS_SCALE = 1.5  # rectified canvas sides are capped at this multiple of the input's
+MAP_TOLERANCE = 1e-3  # px: float32 maps land a hair outside the image on its border
+POSE_TOLERANCE = 1e-6  # how far a pose's rotation may be from orthonormal
+
+
+class Rectification(NamedTuple):
+    """Rectifying homographies (original pixel -> rectified pixel) and rectified 3x4 PPMs."""
+
+    H1: np.ndarray
+    H2: np.ndarray
+    P1: np.ndarray
+    P2: np.ndarray
+
+
+# ----------------------------------------------------------------------------------------------
+# Factorisation
+# ----------------------------------------------------------------------------------------------
+def rq(M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """RQ decomposition ``M = U @ Q`` of a 3x3 matrix, U upper triangular with positive diagonal.
+
+    Q is orthogonal (its determinant carries the sign of det M). Computed as a QR decomposition of
+    the row-flipped, transposed matrix, so no scipy is needed.
+    """
+    M = np.asarray(M, dtype=float)
+    flip = np.eye(3)[::-1]
+    q, r = np.linalg.qr((flip @ M).T)
+    U = flip @ r.T @ flip
+    Q = flip @ q.T
+    signs = np.sign(np.diag(U))
+    signs[signs == 0] = 1.0
+    return U * signs, signs[:, None] * Q  # U @ diag(s) @ diag(s) @ Q == U @ Q
+
+
+def factor_projection(P: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Split a 3x4 PPM into ``(A, R, c)`` with ``P ~ A [R | -R c]``.
+
+    A is upper triangular with a positive diagonal and ``A[2, 2] == 1``, R a proper rotation
+    (det +1) and c the optical centre ``-Q^-1 q``. Any non-zero scale of P, including a negative
+    one, gives the same result. Raises StereoError when P's left 3x3 block is singular.
+    """
+    P = _as_ppm(P)
+    Q, q = P[:, :3], P[:, 3]
+    det = float(np.linalg.det(Q))
+    if not np.isfinite(det) or abs(det) <= 1e-12 * np.linalg.norm(Q) ** 3:
+        raise StereoError(f"projection matrix has a singular left 3x3 block (det {det:.3g})")
+    U, Rq = rq(Q)
+    A = U / U[2, 2]
+    R = Rq * np.sign(np.linalg.det(Rq))  # Q = (s U[2,2]) A (s Rq): absorb the sign into the scale
+    return A, R, -np.linalg.solve(Q, q)
+
+
+def _as_ppm(P: np.ndarray) -> np.ndarray:
+    P = np.asarray(P, dtype=float)
+    if P.shape != (3, 4) or not np.all(np.isfinite(P)):
+        raise StereoError(f"a projection matrix must be a finite 3x4 array, got shape {P.shape}")
+    return P
+
+
+# ----------------------------------------------------------------------------------------------
+# The rectified rig (internal: intrinsics per camera after centering/offsets)
+# ----------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class _Rig:
+    """Old factors of both cameras, the shared new rotation and each camera's new intrinsics."""
+
+    A1: np.ndarray
+    R1: np.ndarray
+    c1: np.ndarray
+    A2: np.ndarray
+    R2: np.ndarray
+    c2: np.ndarray
+    Rn: np.ndarray
+    An1: np.ndarray
+    An2: np.ndarray
+    angle_deg: float  # angle between the baseline and camera 1's optical axis
+
+    def homography(self, i: int) -> np.ndarray:
+        """``An_i Rn R_i^T A_i^-1``: positive-scale form, so w > 0 means 'in front'."""
+        A, R, An = (self.A1, self.R1, self.An1) if i == 1 else (self.A2, self.R2, self.An2)
+        return An @ self.Rn @ R.T @ np.linalg.inv(A)
+
+    def ppm(self, i: int) -> np.ndarray:
+        An, c = (self.An1, self.c1) if i == 1 else (self.An2, self.c2)
+        return An @ np.hstack([self.Rn, (-self.Rn @ c)[:, None]])
+
+    def rectification(self) -> Rectification:
+        return Rectification(self.homography(1), self.homography(2), self.ppm(1), self.ppm(2))
+
+    def shifted(self, d1: tuple[float, float], d2: tuple[float, float]) -> _Rig:
+        """Move each camera's principal point by (du, dv) pixels (a pure image translation)."""
+        return replace(self, An1=_shift_pp(self.An1, d1), An2=_shift_pp(self.An2, d2))
+
+
+def _shift_pp(A: np.ndarray, d: tuple[float, float]) -> np.ndarray:
+    A = A.copy()
+    A[0, 2] += d[0]
+    A[1, 2] += d[1]
+    return A
+
+
+def _solve(P1: np.ndarray, P2: np.ndarray, *, square_pixels: bool) -> _Rig:
+    """The paper's algorithm without any image shift (algorithms.md 1.2, 1.3, 1.5)."""
+    P1, P2 = _as_ppm(P1), _as_ppm(P2)
+    A1, R1, c1 = factor_projection(P1)
+    A2, R2, c2 = factor_projection(P2)
+    Q1 = P1[:, :3]
+    # The old viewing direction from P alone (Hartley-Zisserman's principal axis), immune to the
+    # factorisation's sign choices; equals R1[2].
+    k = np.sign(np.linalg.det(Q1)) * Q1[2] / np.linalg.norm(Q1[2])
+    v1 = c2 - c1
+    b = float(np.linalg.norm(v1))
+    if b <= 1e-12 * max(1.0, float(np.linalg.norm(c1)), float(np.linalg.norm(c2))):
+        raise StereoError(f"baseline is {b:.3g}: both views were taken from the same place")
+    r1 = v1 / b
+    kx = np.cross(k, r1)
+    sin_angle = float(np.linalg.norm(kx))
+    angle = math.degrees(math.asin(min(1.0, sin_angle)))
+    if angle < MIN_BASELINE_ANGLE_DEG:
+        raise StereoError(f"baseline is along the optical axis (angle {angle:.1f} deg): "
+                          "rectification needs a sideways motion "
+                          f"(at least {MIN_BASELINE_ANGLE_DEG:g} deg)")
+    r2 = kx / sin_angle
+    r3 = np.cross(r1, r2)
+    Rn = np.vstack([r1, r2, r3 / np.linalg.norm(r3)])
+    An = (A1 + A2) / 2.0
+    An[0, 1] = 0.0
+    if square_pixels:
+        An[0, 0] = An[1, 1] = (An[0, 0] + An[1, 1]) / 2.0
+    return _Rig(A1, R1, c1, A2, R2, c2, Rn, An, An.copy(), angle)
+
+
+def _dehom(H: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    """Apply a homography to Nx2 points; raises StereoError if any lands behind the camera."""
+    h = np.c_[pts, np.ones(len(pts))] @ H.T
+    if np.any(h[:, 2] <= 0):
+        raise StereoError("part of a view maps behind the rectified camera: the baseline is too "
+                          "close to the optical axis for this field of view; move sideways")
+    return h[:, :2] / h[:, 2:]
+
+
+def _centre_of(size: tuple[int, int]) -> np.ndarray:
+    return np.array([(size[0] - 1) / 2.0, (size[1] - 1) / 2.0])
+
+
+def _corners(size: tuple[int, int]) -> np.ndarray:
+    w, h = size[0] - 1.0, size[1] - 1.0
+    return np.array([[0.0, 0.0], [w, 0.0], [w, h], [0.0, h]])
+
+
+def _centre(rig: _Rig, size1: tuple[int, int], size2: tuple[int, int]) -> _Rig:
+    """RectifKit centering: each image's centre maps to itself, with one shared vertical shift.
+
+    The shared shift is the mean of the two vertical shifts (RectifKit copies the right one);
+    rows stay aligned because both cameras move by the same amount.
+    """
+    d1 = _centre_of(size1) - _dehom(rig.homography(1), _centre_of(size1)[None])[0]
+    d2 = _centre_of(size2) - _dehom(rig.homography(2), _centre_of(size2)[None])[0]
+    dy = (d1[1] + d2[1]) / 2.0
+    return rig.shifted((d1[0], dy), (d2[0], dy))
+
+
+def warped_bounds(H: np.ndarray, size: tuple[int, int]) -> tuple[float, float, float, float]:
+    """(xmin, ymin, xmax, ymax) of an image's warped pixel-centre corners under H."""
+    pts = _dehom(np.asarray(H, dtype=float), _corners(size))
+    return (float(pts[:, 0].min()), float(pts[:, 1].min()),
+            float(pts[:, 0].max()), float(pts[:, 1].max()))
+
+
+def _fit_canvas(rig: _Rig, size1: tuple[int, int], size2: tuple[int, int], *, stereo_aware: bool,
+                out_size: tuple[int, int] | None = None) -> tuple[_Rig, tuple[int, int]]:
+    """Translate both images (same offset) onto one canvas and return its (width, height).
+
+    ``stereo_aware=False`` is RectifKit's smallest common bounding box of both warped images.
+    ``stereo_aware=True`` (used once disparities are known to be >= 0) keeps only what can be
+    matched: rows both images cover, and columns from the leftmost content of either image to the
+    right edge of the left image (right-image content further right could only match left pixels
+    with negative disparity). Sides are capped at MAX_CANVAS_SCALE times the input's largest side,
+    cropping around the left image's centre. ``out_size`` forces the canvas size instead.
+    """
+    b1 = warped_bounds(rig.homography(1), size1)
+    b2 = warped_bounds(rig.homography(2), size2)
+    if stereo_aware:
+        x0, x1 = min(b1[0], b2[0]), b1[2]
+        y0, y1 = max(b1[1], b2[1]), min(b1[3], b2[3])
+        if y1 < y0:
+            raise StereoError("the rectified views share no rows: the two images do not overlap")
+    else:
+        x0, y0 = min(b1[0], b2[0]), min(b1[1], b2[1])
+        x1, y1 = max(b1[2], b2[2]), max(b1[3], b2[3])
+    centre = _dehom(rig.homography(1), _centre_of(size1)[None])[0]
+    cap = int(MAX_CANVAS_SCALE * max(*size1, *size2))
+    forced = (None, None) if out_size is None else (int(out_size[0]), int(out_size[1]))
+    span = max(x1 - x0, y1 - y0) + 1
+    x0, w = _axis_window(x0, x1, centre[0], cap, forced[0])
+    y0, h = _axis_window(y0, y1, centre[1], cap, forced[1])
+    if out_size is None and span > cap:
+        log.warning("rectified canvas capped at %dx%d px (%.1fx the input's largest side)",
+                    w, h, MAX_CANVAS_SCALE)
+    return rig.shifted((-x0, -y0), (-x0, -y0)), (w, h)
+
+
+def _axis_window(lo: float, hi: float, centre: float, cap: int,
+                 forced: int | None) -> tuple[float, int]:
+    """Start coordinate and length of the canvas along one axis (pixel-centre coordinates)."""
+    n = int(math.floor(hi - lo)) + 1
+    if forced is not None:
+        if forced < 1:
+            raise StereoError(f"out_size must be positive, got {forced}")
+        return (lo + hi) / 2.0 - (forced - 1) / 2.0, forced
+    if n <= cap:
+        return lo, n
+    start = min(max(centre - (cap - 1) / 2.0, lo), hi - (cap - 1))
+    return start, cap
+
+
+def fusiello(P1: np.ndarray, P2: np.ndarray, *, image_size: tuple[int, int] | None = None,
+             square_pixels: bool = True) -> Rectification:
+    """Rectify two cameras given by 3x4 PPMs; camera 1 becomes the left one.
+
+    With ``image_size`` (width, height), each warped image is centred (RectifKit) and both are
+    placed on their smallest common bounding box; without it the homographies are the paper's
+    bare ``Qn Qo^-1`` with ``An = (A1 + A2) / 2``. ``square_pixels=False`` keeps the paper's
+    averaged fy (then Q needs the generalised second row, see :class:`StereoGeometry`).
+    Raises StereoError for a baseline within MIN_BASELINE_ANGLE_DEG of the optical axis, a zero
+    baseline or a singular PPM. Invariant to scaling either PPM by any non-zero factor.
+    """
+    rig = _solve(P1, P2, square_pixels=square_pixels)
+    if image_size is not None:
+        size = (int(image_size[0]), int(image_size[1]))
+        rig, _ = _fit_canvas(_centre(rig, size, size), size, size, stereo_aware=False)
+    return rig.rectification()
+
+
+# ----------------------------------------------------------------------------------------------
+# Geometry of a rectified pair (what triangulation needs)
+# ----------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class StereoGeometry:
+    """A rectified pair in metres and pixels; frame of reference: rectified left camera.
+
+    ``R_rect`` rotates base-frame vectors into the rectified cameras' frame; ``c_left`` and
+    ``c_right`` are the optical centres in ``base``. Disparity ``d = x_left - x_right`` relates to
+    depth by ``Z = fx * baseline / (d - disparity_offset)``.
+    """
+
+    fx: float
+    fy: float
+    cx_left: float
+    cx_right: float
+    cy: float
+    baseline: float
+    size: tuple[int, int]
+    R_rect: np.ndarray
+    c_left: np.ndarray
+    c_right: np.ndarray
+
+    @property
+    def disparity_offset(self) -> float:
+        """``cx_left - cx_right``: the disparity of a point at infinity (pixels)."""
+        return self.cx_left - self.cx_right
+
+    @property
+    def K_left(self) -> np.ndarray:
+        return np.array([[self.fx, 0, self.cx_left], [0, self.fy, self.cy], [0, 0, 1.0]])
+
+    @property
+    def K_right(self) -> np.ndarray:
+        return np.array([[self.fx, 0, self.cx_right], [0, self.fy, self.cy], [0, 0, 1.0]])
+
+    @property
+    def T_base_rectleft(self) -> np.ndarray:
+        """Pose of the rectified left camera in ``base`` (4x4)."""
+        return make_T(self.R_rect.T, self.c_left)
+
+    @property
+    def Q(self) -> np.ndarray:
+        """4x4 reprojection: ``Q @ [u, v, d, 1]`` ~ homogeneous point in the rectified-left frame.
+
+        OpenCV's form with Tx = -baseline, its second row generalised to fx != fy.
+        """
+        a = self.fx / self.fy
+        b = self.baseline
+        return np.array([[1.0, 0, 0, -self.cx_left],
+                         [0, a, 0, -self.cy * a],
+                         [0, 0, 0, self.fx],
+                         [0, 0, 1.0 / b, -self.disparity_offset / b]])
+
+    def disparity_window(self, near: float, far: float) -> tuple[float, float]:
+        """Disparities ``(d_min, d_max)`` (pixels) of depths ``far`` and ``near`` (metres)."""
+        if not 0 < near < far:
+            raise StereoError(f"need 0 < near < far, got near={near} far={far}")
+        fb = self.fx * self.baseline
+        return fb / far + self.disparity_offset, fb / near + self.disparity_offset
+
+
+def _geometry(rig: _Rig, size: tuple[int, int]) -> StereoGeometry:
+    return StereoGeometry(
+        fx=float(rig.An1[0, 0]), fy=float(rig.An1[1, 1]), cx_left=float(rig.An1[0, 2]),
+        cx_right=float(rig.An2[0, 2]), cy=float(rig.An1[1, 2]),
+        baseline=float(np.linalg.norm(rig.c2 - rig.c1)), size=size, R_rect=rig.Rn,
+        c_left=rig.c1, c_right=rig.c2)
+
+
+# ----------------------------------------------------------------------------------------------
+# Image-level rectification from poses
+# ----------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class RectifiedPair:
+    """Rectified images, validity masks and geometry of a pair, plus where they came from.
+
+    ``left``/``right`` are the rectified images (BGR or grey uint8, as given); masks are True
+    where the pixel was sampled inside the source image. ``swapped`` is True when the second
+    input image became the left one. ``rectification`` holds H/P for (left, right) in that order;
+    ``left_intrinsics``/``T_base_left_camera`` describe the original (unrectified) left camera.
+    ``maps_left``/``maps_right`` are the float32 ``cv2.remap`` maps (rectified pixel -> source).
+    """
+
+    left: np.ndarray
+    right: np.ndarray
+    left_mask: np.ndarray
+    right_mask: np.ndarray
+    geometry: StereoGeometry
+    rectification: Rectification
+    swapped: bool
+    left_intrinsics: Intrinsics
+    T_base_left_camera: np.ndarray
+    maps_left: tuple[np.ndarray, np.ndarray]
+    maps_right: tuple[np.ndarray, np.ndarray]
+    baseline_angle_deg: float  # angle between baseline and the left camera's optical axis
+    rotation_deg: float  # in-plane rotation the rectification applies to the left image
+
+    @property
+    def left_source(self) -> int:
+        """Which input became the left image: 1 or 2."""
+        return 2 if self.swapped else 1
+
+    @property
+    def size(self) -> tuple[int, int]:
+        """Rectified canvas (width, height)."""
+        return self.geometry.size
+
+    @property
+    def fx(self) -> float:
+        return self.geometry.fx
+
+    @property
+    def cx_left(self) -> float:
+        return self.geometry.cx_left
+
+    @property
+    def cx_right(self) -> float:
+        return self.geometry.cx_right
+
+    @property
+    def cy(self) -> float:
+        return self.geometry.cy
+
+    @property
+    def baseline(self) -> float:
+        return self.geometry.baseline
+
+    @property
+    def Q(self) -> np.ndarray:
+        return self.geometry.Q
+
+    @property
+    def T_base_rectleft(self) -> np.ndarray:
+        return self.geometry.T_base_rectleft
+
+    @property
+    def R_left_cv(self) -> np.ndarray:
+        """Rotation from the original left camera frame to the rectified left camera frame."""
+        return self.geometry.R_rect @ self.T_base_left_camera[:3, :3]
+
+    def disparity_window(self, near: float, far: float) -> tuple[float, float]:
+        return self.geometry.disparity_window(near, far)
+
+
+@dataclass(frozen=True)
+class _View:
+    intrinsics: Intrinsics
+    T_base_camera: np.ndarray
+
+    @property
+    def ppm(self) -> np.ndarray:
+        R = self.T_base_camera[:3, :3]
+        return self.intrinsics.K @ np.hstack([R.T, (-R.T @ self.T_base_camera[:3, 3])[:, None]])
+
+
+def _check_pose(T: np.ndarray, name: str) -> np.ndarray:
+    T = np.asarray(T, dtype=float)
+    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+        raise StereoError(f"{name} must be a finite 4x4 pose, got shape {T.shape}")
+    R = T[:3, :3]
+    err = float(np.abs(R.T @ R - np.eye(3)).max())
+    if err > POSE_TOLERANCE or np.linalg.det(R) <= 0:
+        raise StereoError(f"{name} is not a rigid transform (rotation off by {err:.2g})")
+    return T
+
+
+def second_view_is_left(T_base_cam1: np.ndarray, T_base_cam2: np.ndarray) -> bool:
+    """True when view 2 should be the left image (rectified images then turn by <= 90 deg).
+
+    The baseline c2 - c1 seen in camera 1 has image-plane angle atan2(y, x); view 1 stays left
+    when that angle lies in (-90, 90] deg (view 2 to the right, or straight below in the image).
+    """
+    b = T_base_cam1[:3, :3].T @ (T_base_cam2[:3, 3] - T_base_cam1[:3, 3])
+    angle = math.degrees(math.atan2(b[1], b[0]))
+    return not (-90.0 < angle <= 90.0)
+
+
+def rectified_geometry(intrinsics1: Intrinsics, T_base_cam1: np.ndarray,
+                       intrinsics2: Intrinsics, T_base_cam2: np.ndarray, *,
+                       depth_range: tuple[float, float] | None = None,
+                       out_size: tuple[int, int] | None = None) -> tuple[StereoGeometry, bool]:
+    """The rectified geometry :func:`rectify_pair` would produce, without touching images.
+
+    Returns ``(geometry, swapped)``. Cheap (a few 3x3 products); used to choose a depth range.
+    """
+    rig, size, swapped, _, _ = _plan(intrinsics1, T_base_cam1, intrinsics2, T_base_cam2,
+                                     depth_range, out_size)
+    return _geometry(rig, size), swapped
+
+
+def _plan(intr1: Intrinsics, T1: np.ndarray, intr2: Intrinsics, T2: np.ndarray,
+          depth_range: tuple[float, float] | None, out_size: tuple[int, int] | None):
+    views = [_View(intr1, _check_pose(T1, "T_base_cam1")),
+             _View(intr2, _check_pose(T2, "T_base_cam2"))]
+    swapped = second_view_is_left(views[0].T_base_camera, views[1].T_base_camera)
+    left, right = (views[1], views[0]) if swapped else (views[0], views[1])
+    sizes = (left.intrinsics.size, right.intrinsics.size)
+    rig = _centre(_solve(left.ppm, right.ppm, square_pixels=True), *sizes)
+    if depth_range is not None:
+        # Align the far end of the depth range with disparity 0: the matcher then searches
+        # [0, d(near) - d(far)] and nothing it can represent is wasted.
+        d_far, _ = _geometry(rig, sizes[0]).disparity_window(*depth_range)
+        rig = rig.shifted((0.0, 0.0), (d_far, 0.0))
+    rig, size = _fit_canvas(rig, *sizes, stereo_aware=depth_range is not None, out_size=out_size)
+    return rig, size, swapped, left, right
+
+
+def _remap_maps(view: _View, R_cv: np.ndarray, K_new: np.ndarray,
+                size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """Float32 maps rectified pixel -> original pixel, lens distortion included.
+
+    OpenCV's map builder ignores skew in the old camera matrix, so a skewed K (only allowed
+    without distortion) is split into a skew-free K and a shear folded into R.
+    """
+    K = view.intrinsics.K
+    if K[0, 1] != 0.0:
+        if view.intrinsics.has_distortion:
+            raise StereoError(f"camera matrix with skew {K[0, 1]:.3g} and lens distortion: "
+                              "OpenCV's undistortion model has no skew")
+        K0 = K.copy()
+        K0[0, 1] = 0.0
+        R_cv = R_cv @ np.linalg.solve(K, K0)  # OpenCV inverts (K_new R): source = K0 (R^-1 ...)
+        K = K0
+    return cv2.initUndistortRectifyMap(K, view.intrinsics.dist, R_cv, K_new, size, cv2.CV_32FC1)
+
+
+def _warp(image: np.ndarray, maps: tuple[np.ndarray, np.ndarray],
+          src_size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """Remap an image (bilinear, black outside) and return it with its validity mask.
+
+    The mask is True where the sampling position lies inside the source's pixel-centre grid
+    (up to MAP_TOLERANCE px of float32 rounding), i.e. where bilinear interpolation used source
+    pixels only.
+    """
+    mx, my = maps
+    out = cv2.remap(image, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                    borderValue=0)
+    lo, hx, hy = -MAP_TOLERANCE, src_size[0] - 1 + MAP_TOLERANCE, src_size[1] - 1 + MAP_TOLERANCE
+    mask = (mx >= lo) & (my >= lo) & (mx <= hx) & (my <= hy)
+    return out, mask
+
+
+def _check_image(image: np.ndarray, name: str) -> np.ndarray:
+    image = np.asarray(image)
+    if image.dtype != np.uint8 or image.ndim not in (2, 3) or image.size == 0 or (
+            image.ndim == 3 and image.shape[2] not in (1, 3)):
+        raise StereoError(f"{name} must be a non-empty uint8 grey or BGR image, got "
+                          f"{image.dtype} {image.shape}")
+    return image
+
+
+def rectify_pair(image1: np.ndarray, image2: np.ndarray, K1: np.ndarray, dist1: np.ndarray | None,
+                 T_base_cam1: np.ndarray, K2: np.ndarray, dist2: np.ndarray | None,
+                 T_base_cam2: np.ndarray, *, out_size: tuple[int, int] | None = None,
+                 depth_range: tuple[float, float] | None = None) -> RectifiedPair:
+    """Rectify two images taken from known poses (``T_base_cam``: camera_optical in base, m).
+
+    Distortion (OpenCV coefficients, None = none) is removed in the same remap. Without
+    ``depth_range`` the canvas is the RectifKit common bounding box; with ``(near, far)`` (m) the
+    right image is shifted so that ``far`` has disparity 0 and the canvas keeps only what can be
+    matched (see :func:`_fit_canvas`). ``out_size`` (width, height) forces the canvas size.
+    Raises StereoError for bad images/poses, a degenerate baseline or views that do not overlap.
+    """
+    image1, image2 = _check_image(image1, "image1"), _check_image(image2, "image2")
+    intr1 = _intrinsics(image1, K1, dist1)
+    intr2 = _intrinsics(image2, K2, dist2)
+    rig, size, swapped, left, right = _plan(intr1, T_base_cam1, intr2, T_base_cam2,
+                                            depth_range, out_size)
+    img_l, img_r = (image2, image1) if swapped else (image1, image2)
+    R_l = rig.Rn @ left.T_base_camera[:3, :3]
+    maps_l = _remap_maps(left, R_l, rig.An1, size)
+    maps_r = _remap_maps(right, rig.Rn @ right.T_base_camera[:3, :3], rig.An2, size)
+    out_l, mask_l = _warp(img_l, maps_l, left.intrinsics.size)
+    out_r, mask_r = _warp(img_r, maps_r, right.intrinsics.size)
+    rotation = round(math.degrees(math.atan2(R_l[1, 0], R_l[0, 0])), 9) + 0.0  # no "-0"
+    log.debug("rectified %dx%d, swapped=%s, rotation %.1f deg, baseline %.4f m", *size, swapped,
+              rotation, float(np.linalg.norm(rig.c2 - rig.c1)))
+    return RectifiedPair(out_l, out_r, mask_l, mask_r, _geometry(rig, size), rig.rectification(),
+                         swapped, left.intrinsics, left.T_base_camera, maps_l, maps_r,
+                         rig.angle_deg, rotation)
+
+
+def _intrinsics(image: np.ndarray, K: np.ndarray, dist: np.ndarray | None) -> Intrinsics:
+    dist = np.zeros(5) if dist is None else np.asarray(dist, dtype=float).reshape(-1)
+    return Intrinsics(int(image.shape[1]), int(image.shape[0]), np.asarray(K, dtype=float), dist)
