@@ -92,9 +92,7 @@ def _settings(args: argparse.Namespace, b: float) -> CaptureSettings:
 
 
 def _reconstruct(path: Path, args, near: float, far: float):
-    pair = Recording.open(path)[0]
-    recon = reconstruct_pair(pair, method=args.method, near=near, far=far)
-    return recon, pair
+    return reconstruct_pair(Recording.open(path)[0], method=args.method, near=near, far=far)
 
 
 def _mock_capture(args, model: ArmModel, baselines: list[float], out: Path):
@@ -118,7 +116,7 @@ def _mock_capture(args, model: ArmModel, baselines: list[float], out: Path):
             with cam:
                 capture_to_file(arm, cam, model, plan, path, _meta(args, model, b),
                                 progress=None)
-        recon, pair = _reconstruct(path, args, near, far)
+        recon = _reconstruct(path, args, near, far)
         return recon.depth_original, targets, recon.depth_truth
 
     return capture_one
@@ -144,7 +142,7 @@ def _live_capture(args, model: ArmModel, out: Path):
             with build_camera(args.camera, model, arm) as cam:
                 capture_to_file(arm, cam, model, plan, path, _meta(args, model, b),
                                 progress=None)
-        recon, _ = _reconstruct(path, args, near, far)
+        recon = _reconstruct(path, args, near, far)
         return recon.depth_original, targets, None
 
     return capture_one
