@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pytest
 
@@ -79,3 +81,13 @@ def test_reader_refuses_what_it_cannot_read(tmp_path):
         read_ply(tmp_path / "x.ply")
     with pytest.raises(StereoError, match="one line"):
         encode_ply(pts, cols, comment="a\nb")
+
+
+def test_written_files_get_the_umask_mode_not_a_private_one(tmp_path):
+    # other users (a viewer, a web server) must be able to read the outputs like any saved file
+    old = os.umask(0o022)
+    try:
+        path = write_ply(tmp_path / "c.ply", *cloud())
+    finally:
+        os.umask(old)
+    assert path.stat().st_mode & 0o777 == 0o644
