@@ -73,7 +73,8 @@ def mock_start_configuration(model: ArmModel, height: float = MOCK_CAMERA_HEIGHT
         return model.ik(model.flange_pose_for_camera(T_cam), q_ready, margin=0.1)
     except IKError as err:
         raise ConfigError(f"{model.name} cannot place the camera {height} m above the mock "
-                          f"scene at ({cx:.2f}, {cy:.2f}): {err}") from None
+                          f"scene at ({cx:.2f}, {cy:.2f}) (the scene is laid out for arms with "
+                          f"0.85 m reach or more, e.g. ur5e): {err}") from None
 
 
 SWEEP_CAMERA_HEIGHT_M = 0.35
