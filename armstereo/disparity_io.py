@@ -1,4 +1,4 @@
-"""Disparity files: PFM (float, exact) and 16-bit PNG (scaled), plus a colour view for people.
+"""Disparity files: PFM (float, exact) and 16-bit PNG (scaled).
 
 Conventions:
 
@@ -9,6 +9,9 @@ Conventions:
   convention), so disparities must be below 256 px (use PFM otherwise). Reading a PNG divides
   by ``scale`` (default 256 for 16-bit files, 1 for 8-bit ones; Middlebury ground truth needs
   its own, e.g. 16 for Tsukuba, 8 for Venus, 4 for Teddy and Cones); 0 reads as NaN.
+
+Files are written atomically (temporary file and rename). Colour views for people are in
+:func:`armstereo.visualize.colorize_disparity`.
 """
 
 from __future__ import annotations
@@ -20,8 +23,10 @@ import cv2
 import numpy as np
 
 from armstereo.errors import StereoError
+from armstereo.ply import write_bytes_atomic
 
-PNG_SCALE = 256
+PNG_SCALE = 256  # 16-bit PNG value per pixel of disparity (KITTI convention)
+DISPARITY_SUFFIXES = (".pfm", ".png")  # what write_disparity can write
 
 
 def write_disparity(path: str | Path, disp: np.ndarray) -> None:
@@ -55,10 +60,13 @@ def write_pfm(path: str | Path, disp: np.ndarray) -> None:
     """Grey little-endian PFM; NaN written as +inf."""
     data = np.where(np.isfinite(disp), disp, np.inf).astype("<f4")
     H, W = data.shape
+    header = f"Pf\n{W} {H}\n-1.0\n".encode("ascii")  # negative scale: little-endian
+    _write_bytes(path, header + np.ascontiguousarray(data[::-1]).tobytes())
+
+
+def _write_bytes(path: str | Path, data: bytes) -> None:
     try:
-        with open(path, "wb") as f:
-            f.write(f"Pf\n{W} {H}\n-1.0\n".encode("ascii"))
-            f.write(np.ascontiguousarray(data[::-1]).tobytes())
+        write_bytes_atomic(path, data)
     except OSError as err:
         raise StereoError(f"cannot write {path}: {err.strerror}") from err
 
@@ -97,9 +105,12 @@ def _write_png(path: Path, disp: np.ndarray) -> None:
                           f" do not fit a 16-bit PNG with scale {PNG_SCALE} "
                           f"(0..{65535 / PNG_SCALE:.2f}); write .pfm instead")
     data = np.zeros(disp.shape, np.uint16)
+    # a real disparity of 0 must not read back as "none": it is stored as 1/256 px
     data[finite] = np.clip(np.rint(disp[finite] * PNG_SCALE), 1, 65535).astype(np.uint16)
-    if not cv2.imwrite(str(path), data):
-        raise StereoError(f"cannot write {path}")
+    ok, buf = cv2.imencode(".png", data)
+    if not ok:
+        raise StereoError(f"cannot encode {path} as PNG")
+    _write_bytes(path, buf.tobytes())
 
 
 def _read_png(path: Path, scale: float | None) -> np.ndarray:
@@ -117,22 +128,3 @@ def _read_png(path: Path, scale: float | None) -> np.ndarray:
     disp = data.astype(np.float32) / np.float32(scale)
     disp[data == 0] = np.nan
     return disp
-
-
-def colorize(disp: np.ndarray, vmin: float | None = None, vmax: float | None = None) -> np.ndarray:
-    """BGR uint8 view of a disparity map: near (large d) warm, far cool, no disparity black.
-
-    ``vmin``/``vmax`` default to the 1st/99th percentiles of the finite values.
-    """
-    disp = np.asarray(disp, np.float32)
-    finite = np.isfinite(disp)
-    out = np.zeros(disp.shape + (3,), np.uint8)
-    if not finite.any():
-        return out
-    lo = float(np.percentile(disp[finite], 1)) if vmin is None else float(vmin)
-    hi = float(np.percentile(disp[finite], 99)) if vmax is None else float(vmax)
-    norm = np.clip((disp - lo) / max(hi - lo, 1e-6), 0.0, 1.0)
-    grey = np.where(finite, np.rint(norm * 255), 0).astype(np.uint8)
-    out = cv2.applyColorMap(grey, cv2.COLORMAP_TURBO)
-    out[~finite] = 0
-    return out

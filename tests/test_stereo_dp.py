@@ -45,7 +45,7 @@ class Scanline:
 
     def exact(self):
         match = np.empty(self.n, np.int32)
-        phi = np.empty((self.n, self.nd), np.int32)
+        phi = np.empty((self.n, self.nd), np.float32)
         cost = scanline_dp_exact(*self.lb, *self.rb, 0, False, self.gl, self.gr, self.occ, REW, phi,
                                  match)
         return cost, match

@@ -4,7 +4,7 @@ Modules, in the order the matcher uses them:
 
 - :mod:`.cost`: the sampling-insensitive dissimilarity and the intensity-variation flags;
 - :mod:`.dp`: the scanline dynamic programme over match sequences and its decoding;
-- :mod:`.matcher`: all rows of an image pair (numba ``prange``), masks and disparity window;
+- :mod:`.matcher`: all rows of an image pair (on threads), masks and disparity window;
 - :mod:`.postprocess`: the paper's propagation across scanlines and mode filters;
 - :mod:`.refine`: options beyond the paper (subpixel, left-right check).
 

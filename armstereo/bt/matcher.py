@@ -5,7 +5,9 @@ Row ``r`` is matched on the longest run of valid pixels of each image. With the 
 scanline programme of :mod:`.dp` sees disparity indices ``k = u - xR`` in ``[0, nd)``.
 
 Rows are independent; :func:`match_image` runs the compiled row loop (``nogil``) on a few
-Python threads over interleaved rows (numba's ``prange`` measured 2-4x slower per thread here).
+Python threads over interleaved rows, not on numba's parallel layer (``prange``): OpenMP
+workers keep spinning for a while after a parallel region and can slow the OpenCV stage that
+follows on a small machine (bench/stereo_threads.py); these threads end with the call.
 """
 
 from __future__ import annotations
@@ -86,63 +88,96 @@ def _row_bounds(left, right, la, lb, ra, rb, r0, r1, x0, u1, dmin, gl, gr):
     return lv, lmin, lmax, rv, rmin, rmax
 
 
+@njit(cache=True)
+def _begin_row(lmask_row, rmask_row, dmin, nd, disp_row, state_row):
+    """Reset one row's outputs; returns ``(la, lb, r0, r1, x0, u1, ra, rb)``: the valid runs
+    and the geometry of :func:`row_geometry`."""
+    disp_row[:] = -1
+    state_row[:] = INVALID
+    la, lb = longest_run(lmask_row)
+    ra, rb = longest_run(rmask_row)
+    state_row[la:lb] = BORDER
+    r0, r1, x0, u1 = row_geometry(la, lb, ra, rb, dmin, nd)
+    return la, lb, r0, r1, x0, u1, ra, rb
+
+
+@njit(cache=True)
+def _store_row(match, la, lb, r0, x_lo, dmin, dloc, sloc, disp_row, state_row):
+    """Decode one row's match sequence (local coordinates) into the image row."""
+    nx = match.shape[0]
+    decode_matches(match, dloc[:nx], sloc[:nx])
+    off = r0 + dmin  # image column of local left pixel 0
+    for x in range(x_lo, nx):
+        disp_row[off + x] = dloc[x]
+        state_row[off + x] = sloc[x]
+    # valid left pixels that cannot be matched keep BORDER and take the nearest decoded
+    # disparity (the reference code's dense border policy)
+    disp_row[la:off + x_lo] = dloc[x_lo]
+    disp_row[off + nx:lb] = dloc[nx - 1]
+
+
 @njit(cache=True, nogil=True)
-def match_rows(left, right, lmask, rmask, rows, dmin, nd, occ, rew, combine_max, mode,
-               disp, state):
-    """Match the rows ``rows`` of (H, W, C) uint8 images.
+def match_rows(left, right, lmask, rmask, rows, dmin, nd, occ, rew, combine_max, disp, state):
+    """Match the rows ``rows`` of (H, W, C) uint8 images with the exact programme.
 
     Fills (H, W) int32 ``disp`` with the window index ``k`` (disparity ``dmin + k``, -1 = none)
-    and uint8 ``state`` (MATCHED / OCCLUDED / BORDER / INVALID of :mod:`.dp`). ``mode``:
-    DP_EXACT, DP_PRUNED or DP_FULL.
+    and uint8 ``state`` (MATCHED / OCCLUDED / BORDER / INVALID of :mod:`.dp`).
     """
     W = left.shape[1]
-    phi_buf = np.empty((W, nd), np.int32)
-    gl_buf = np.empty(W, np.bool_)
-    gr_buf = np.empty(W, np.bool_)
+    phi = np.empty((W, nd), np.float32)  # work array of dp_fast
+    gl = np.empty(W, np.bool_)
+    gr = np.empty(W, np.bool_)
     match = np.empty(W, np.int32)
     dloc = np.empty(W, np.int32)
     sloc = np.empty(W, np.uint8)
     for r in rows:
-        disp[r, :] = -1
-        state[r, :] = INVALID
-        la, lb = longest_run(lmask[r])
-        ra, rb = longest_run(rmask[r])
-        state[r, la:lb] = BORDER
-        r0, r1, x0, u1 = row_geometry(la, lb, ra, rb, dmin, nd)
+        la, lb, r0, r1, x0, u1, ra, rb = _begin_row(lmask[r], rmask[r], dmin, nd, disp[r],
+                                                    state[r])
         if r1 <= r0 or u1 <= x0:
             continue
-        ny = r1 - r0
-        nx = u1 - r0
-        x_lo = x0 - r0
-        gl = gl_buf[:nx]
-        gr = gr_buf[:ny]
-        lv, lmin, lmax, rv, rmin, rmax = _row_bounds(left[r], right[r], la, lb, ra, rb, r0, r1,
-                                                     x0, u1, dmin, gl, gr)
-        if mode == DP_EXACT:
-            cost = scanline_dp_exact(lv, lmin, lmax, rv, rmin, rmax, x_lo, combine_max, gl, gr,
-                                     occ, rew, phi_buf[:ny], match[:nx])
-        else:
-            dis = np.empty((ny, nd), np.int32)
-            dissimilarity_table(lv, lmin, lmax, rv, rmin, rmax, x_lo, combine_max, dis)
-            cost = scanline_dp(dis, gl, gr, occ, rew, mode == DP_PRUNED, phi_buf[:ny],
-                               np.empty((ny, nd), np.int16), match[:nx])
-        if cost >= INF:
+        ny, nx, x_lo = r1 - r0, u1 - r0, x0 - r0
+        b = _row_bounds(left[r], right[r], la, lb, ra, rb, r0, r1, x0, u1, dmin, gl[:nx],
+                        gr[:ny])
+        cost = scanline_dp_exact(b[0], b[1], b[2], b[3], b[4], b[5], x_lo, combine_max,
+                                 gl[:nx], gr[:ny], occ, rew, phi[:ny], match[:nx])
+        if cost < INF:
+            _store_row(match[:nx], la, lb, r0, x_lo, dmin, dloc, sloc, disp[r], state[r])
+
+
+@njit(cache=True, nogil=True)
+def match_rows_search(left, right, lmask, rmask, rows, dmin, nd, occ, rew, combine_max,
+                      prune, disp, state):
+    """:func:`match_rows` with the search programme of :mod:`.dp`: the reference code's
+    pruned search, or (``prune=False``) the unpruned O(n nd^2) one. A separate function so
+    that the default path does not compile it."""
+    W = left.shape[1]
+    gl = np.empty(W, np.bool_)
+    gr = np.empty(W, np.bool_)
+    match = np.empty(W, np.int32)
+    dloc = np.empty(W, np.int32)
+    sloc = np.empty(W, np.uint8)
+    for r in rows:
+        la, lb, r0, r1, x0, u1, ra, rb = _begin_row(lmask[r], rmask[r], dmin, nd, disp[r],
+                                                    state[r])
+        if r1 <= r0 or u1 <= x0:
             continue
-        decode_matches(match[:nx], dloc[:nx], sloc[:nx])
-        off = r0 + dmin  # image column of local left pixel 0
-        for x in range(x_lo, nx):
-            disp[r, off + x] = dloc[x]
-            state[r, off + x] = sloc[x]
-        # valid left pixels that cannot be matched keep BORDER and take the nearest decoded
-        # disparity (the reference code's dense border policy)
-        disp[r, la:off + x_lo] = dloc[x_lo]
-        disp[r, off + nx:lb] = dloc[nx - 1]
+        ny, nx, x_lo = r1 - r0, u1 - r0, x0 - r0
+        b = _row_bounds(left[r], right[r], la, lb, ra, rb, r0, r1, x0, u1, dmin, gl[:nx],
+                        gr[:ny])
+        dis = np.empty((ny, nd), np.int32)
+        dissimilarity_table(b[0], b[1], b[2], b[3], b[4], b[5], x_lo, combine_max, dis)
+        cost = scanline_dp(dis, gl[:nx], gr[:ny], occ, rew, prune, np.empty((ny, nd), np.int32),
+                           np.empty((ny, nd), np.int16), match[:nx])
+        if cost < INF:
+            _store_row(match[:nx], la, lb, r0, x_lo, dmin, dloc, sloc, disp[r], state[r])
 
 
 def match_image(left: np.ndarray, right: np.ndarray, lmask: np.ndarray, rmask: np.ndarray,
                 dmin: int, nd: int, occ: int, rew: int, *, combine_max: bool = False,
                 mode: int = DP_EXACT, threads: int | None = None):
     """Scanline-match a pair; returns ``(disp_index, state)`` (see :func:`match_rows`).
+
+    ``mode``: DP_EXACT, DP_PRUNED or DP_FULL.
 
     ``threads`` defaults to ``numba.get_num_threads()``, so ``numba.set_num_threads(1)``
     makes the whole matcher single-threaded.
@@ -152,13 +187,16 @@ def match_image(left: np.ndarray, right: np.ndarray, lmask: np.ndarray, rmask: n
     state = np.empty((H, W), np.uint8)
     n = max(1, min(H, threads or numba.get_num_threads()))
     jobs = [np.arange(i, H, n, dtype=np.int64) for i in range(n)]
+    if mode == DP_EXACT:
+        rows_fn, extra = match_rows, ()
+    else:
+        rows_fn, extra = match_rows_search, (mode == DP_PRUNED,)
     args = (left, right, lmask, rmask)
+    params = (dmin, nd, occ, rew, combine_max, *extra, disp, state)
     if n == 1:
-        match_rows(*args, jobs[0], dmin, nd, occ, rew, combine_max, mode, disp, state)
+        rows_fn(*args, jobs[0], *params)
     else:
         with ThreadPoolExecutor(n) as pool:
-            futures = [pool.submit(match_rows, *args, rows, dmin, nd, occ, rew, combine_max,
-                                   mode, disp, state) for rows in jobs]
-            for f in futures:
+            for f in [pool.submit(rows_fn, *args, rows, *params) for rows in jobs]:
                 f.result()
     return disp, state

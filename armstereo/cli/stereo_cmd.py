@@ -1,0 +1,114 @@
+"""``armstereo stereo``: disparity of an already rectified pair (Middlebury style)."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from armstereo.disparity_io import DISPARITY_SUFFIXES, write_disparity
+from armstereo.errors import ConfigError
+from armstereo.stereo import (
+    COLOR_MODES,
+    METHODS,
+    OCCLUSION_MODES,
+    SUBPIXEL_MODES,
+    compute_disparity,
+)
+from armstereo.visualize import colorize_disparity, write_png
+
+log = logging.getLogger(__name__)
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "stereo", help="disparity map of a rectified image pair",
+        description="Match a rectified pair: a left pixel (x, y) with disparity d sees the "
+        "right pixel (x - d, y). Writes the left image's disparity as .pfm (float, no match = "
+        "inf) or .png (16-bit, value = 256 d, 0 = no match). Searched disparities are "
+        "MIN .. MIN + N inclusive.")
+    p.add_argument("left", metavar="LEFT", help="left (reference) image, 8-bit grey or colour")
+    p.add_argument("right", metavar="RIGHT", help="right image, same size")
+    p.add_argument("--max-disparity", required=True, type=int, metavar="N",
+                   help="largest disparity searched, counted from --min-disparity (pixels; "
+                   "the range MIN .. MIN + N is inclusive)")
+    p.add_argument("--out", required=True, metavar="DISP.pfm|.png", help="disparity file")
+    p.add_argument("--method", choices=METHODS, default="birchfield",
+                   help="matcher (default birchfield; sgbm = OpenCV StereoSGBM)")
+    p.add_argument("--min-disparity", type=int, default=0, metavar="M",
+                   help="smallest disparity searched (default 0)")
+    p.add_argument("--colorized", metavar="VIEW.png", default=None,
+                   help="also write a colour view of the disparity with a legend")
+    bt = p.add_argument_group("birchfield options")
+    bt.add_argument("--color", choices=COLOR_MODES, default="gray",
+                    help="grey matching (default) or per-channel costs summed / maximum")
+    bt.add_argument("--occlusions", choices=OCCLUSION_MODES, default="nan",
+                    help="nan: no disparity where a nearer surface hides the pixel (default); "
+                    "fill: the paper's background fill")
+    bt.add_argument("--subpixel", choices=SUBPIXEL_MODES, default="gradient",
+                    help="subpixel refinement (default gradient)")
+    bt.add_argument("--lr-check", action="store_true",
+                    help="reject pixels failing a left-right consistency check (twice the time)")
+    bt.add_argument("--no-postprocess", action="store_true",
+                    help="raw scanline result, without the paper's propagation across rows")
+    bt.add_argument("--threads", type=int, default=None, metavar="K",
+                    help="rows are matched on K threads (default: all cores)")
+    p.set_defaults(func=run)
+
+
+def read_image(path: str) -> np.ndarray:
+    """8-bit grey (H, W) or BGR (H, W, 3) image; ConfigError if missing or unreadable."""
+    if not Path(path).is_file():
+        raise ConfigError(f"no such image: {path}")
+    img = cv2.imread(path, cv2.IMREAD_ANYCOLOR)  # grey stays grey, alpha is dropped
+    if img is None:
+        raise ConfigError(f"{path}: not a readable image")
+    return img
+
+
+def _check_args(args: argparse.Namespace) -> None:
+    for flag, value in (("--out", args.out), ("--colorized", args.colorized)):
+        if value is None:
+            continue
+        suffixes = DISPARITY_SUFFIXES if flag == "--out" else (".png",)
+        if Path(value).suffix.lower() not in suffixes:
+            raise ConfigError(f"{flag} {value}: use a {' or '.join(suffixes)} file")
+        if not Path(value).resolve().parent.is_dir():
+            raise ConfigError(f"{flag} {value}: folder does not exist")
+    if args.max_disparity < 1:
+        raise ConfigError(f"--max-disparity must be at least 1, got {args.max_disparity}")
+    if args.min_disparity < 0:
+        raise ConfigError(f"--min-disparity must be >= 0, got {args.min_disparity}")
+    if args.threads is not None and args.threads < 1:
+        raise ConfigError(f"--threads must be at least 1, got {args.threads}")
+
+
+def _options(args: argparse.Namespace) -> dict:
+    if args.method != "birchfield":
+        return {}
+    return dict(color=args.color, occlusions=args.occlusions, subpixel=args.subpixel,
+                lr_check=args.lr_check, postprocess=not args.no_postprocess,
+                threads=args.threads)
+
+
+def run(args: argparse.Namespace) -> int:
+    _check_args(args)  # before the (possibly long) matching
+    left, right = read_image(args.left), read_image(args.right)
+    t0 = time.perf_counter()
+    disp = compute_disparity(left, right, args.max_disparity, method=args.method,
+                             min_disparity=args.min_disparity, **_options(args))
+    elapsed = time.perf_counter() - t0
+    write_disparity(args.out, disp)
+    H, W = disp.shape
+    hi = args.min_disparity + args.max_disparity
+    print(f"{args.method}: {W}x{H}, disparities {args.min_disparity}..{hi}, "
+          f"{100 * np.isfinite(disp).mean():.1f} % matched, {1000 * elapsed:.0f} ms")
+    print(f"  disparity  {args.out}")
+    if args.colorized:
+        write_png(args.colorized, colorize_disparity(disp, args.min_disparity, hi))
+        print(f"  colorized  {args.colorized}")
+    return 0

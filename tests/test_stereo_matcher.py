@@ -1,0 +1,229 @@
+"""The public matcher ``armstereo.stereo.birchfield`` on scenes with known answers
+(algorithms.md §6.2.2-4, 7), its input checks, and a sanity bound on a Middlebury pair."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from armstereo.disparity_io import read_disparity
+from armstereo.errors import StereoError
+from armstereo.evaluation import evaluate_disparity
+from armstereo.stereo import birchfield, compute_disparity, sgbm
+
+MIDDLEBURY = Path(__file__).parent / "data" / "middlebury"
+# Measured 4.51 % (bench/results/stereo.md); the bound leaves room for tie-breaking changes,
+# not for a broken matcher.
+TSUKUBA_BAD2_BOUND = 0.06
+
+
+def texture(shape, seed, *, blur=1.5, contrast=50.0, channels=1):
+    """Band-limited random texture, uint8, grey (H, W) or BGR (H, W, 3): BT needs features of
+    2-3 px at least (white noise breaks the sampling-insensitive cost, algorithms.md §5.4)."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(channels):
+        noise = cv2.GaussianBlur(rng.standard_normal(shape).astype(np.float32), (0, 0), blur)
+        out.append(128.0 + contrast * noise / (3.0 * noise.std()))
+    img = np.clip(np.rint(np.dstack(out)), 0, 255).astype(np.uint8)
+    return img[:, :, 0] if channels == 1 else img
+
+
+def shifted_pair(d0, *, shape=(60, 120), seed=0, channels=1):
+    """Left and right views of one fronto-parallel plane at disparity ``d0``:
+    ``left[:, x] = right[:, x - d0]``."""
+    H, W = shape
+    tex = texture((H, W + d0), seed, channels=channels)
+    return tex[:, :W], tex[:, d0:]
+
+
+def box_pair(d_bg, d_fg, box, *, shape=(80, 140), seed=1):
+    """A textured background plane at ``d_bg`` and a fronto-parallel box at ``d_fg`` covering
+    the left-image rectangle ``box = (x0, x1, y0, y1)``. Returns (left, right)."""
+    H, W = shape
+    x0, x1, y0, y1 = box
+    bg = texture((H, W + d_bg), seed)
+    fg = texture((H, W + d_fg), seed + 100)
+    xs = np.arange(W)
+    left = bg[:, :W].copy()  # background point x seen at x in the left view ...
+    left[y0:y1, x0:x1] = fg[y0:y1, x0:x1]
+    right = bg[:, d_bg:d_bg + W].copy()  # ... and at x - d_bg in the right view
+    covered = (xs + d_fg >= x0) & (xs + d_fg < x1)  # right pixels the box hides
+    right[y0:y1, covered] = fg[y0:y1][:, xs[covered] + d_fg]  # box point x seen at x - d_fg
+    return left, right
+
+
+# --- known answers ------------------------------------------------------------------------
+
+@pytest.mark.parametrize("d0", [0, 5, 12])
+@pytest.mark.parametrize("channels", [1, 3])
+def test_constant_disparity_recovered_exactly(d0, channels):
+    left, right = shifted_pair(d0, channels=channels)
+    disp = birchfield(left, right, 15, subpixel="none")
+    assert np.isnan(disp[:, :d0]).all()  # no partner inside the right image
+    np.testing.assert_array_equal(disp[:, d0:], d0)
+    # the default subpixel refinement keeps an exact integer shift where it is
+    refined = birchfield(left, right, 15)
+    np.testing.assert_allclose(refined[:, d0 + 2:-2], d0, atol=1e-3)
+
+
+def test_min_disparity_shifts_the_window():
+    left, right = shifted_pair(14, seed=3)
+    disp = birchfield(left, right, 6, min_disparity=10, subpixel="none")
+    np.testing.assert_array_equal(disp[:, 14:], 14)
+    assert np.isnan(disp[:, :10]).all()  # x < min_disparity can never have a partner
+
+
+def test_fronto_parallel_box_interiors_exact_and_occlusion_strip_where_geometry_says():
+    d_bg, d_fg, (x0, x1, y0, y1) = 3, 11, (50, 100, 20, 60)
+    left, right = box_pair(d_bg, d_fg, (x0, x1, y0, y1))
+    disp = birchfield(left, right, 15, subpixel="none")
+    m = 3  # boundaries may be off by a pixel or two (algorithms.md §6.2.3)
+    np.testing.assert_array_equal(disp[y0 + m:y1 - m, x0 + m:x1 - m], d_fg)
+    np.testing.assert_array_equal(disp[y0 + m:y1 - m, d_bg + m:x0 - (d_fg - d_bg) - m], d_bg)
+    np.testing.assert_array_equal(disp[y0 + m:y1 - m, x1 + m:], d_bg)
+    np.testing.assert_array_equal(disp[:y0 - m, d_bg:], d_bg)
+    np.testing.assert_array_equal(disp[y1 + m:, d_bg:], d_bg)
+    # Left pixels x0 - 8 .. x0 - 1 see background that the box hides from the right camera:
+    # no disparity there, and nowhere else inside the box's rows (away from the left border).
+    strip = np.zeros(left.shape[1], bool)
+    strip[x0 - (d_fg - d_bg):x0] = True
+    near_strip = strip | np.roll(strip, 1) | np.roll(strip, -1)
+    for row in disp[y0 + m:y1 - m]:
+        missing = np.isnan(row)
+        missing[:d_bg] = False
+        assert (missing & strip).sum() >= strip.sum() - 1
+        assert not (missing & ~near_strip).any()
+    # the paper's own policy fills the strip with the background disparity instead
+    filled = birchfield(left, right, 15, subpixel="none", occlusions="fill")
+    np.testing.assert_array_equal(filled[y0 + m:y1 - m, x0 - (d_fg - d_bg) + 1:x0 - 1], d_bg)
+
+
+def test_left_right_check_also_rejects_the_occluded_strip():
+    d_bg, d_fg, box = 2, 10, (60, 110, 15, 55)
+    left, right = box_pair(d_bg, d_fg, box, seed=4)
+    disp = birchfield(left, right, 15, occlusions="fill", lr_check=True, subpixel="none")
+    x0 = box[0]
+    assert np.isnan(disp[20:50, x0 - 6:x0 - 2]).all()
+    assert np.isfinite(disp[20:50, x0 + 3:box[1] - 3]).all()
+
+
+def test_flat_pair_gives_the_smallest_disparity():
+    flat = np.full((30, 50), 90, np.uint8)
+    np.testing.assert_array_equal(birchfield(flat, flat, 8), 0)
+    disp = birchfield(flat, flat, 8, min_disparity=3)
+    assert np.isnan(disp[:, :3]).all()
+    np.testing.assert_array_equal(disp[:, 3:], 3)
+
+
+def test_grey_and_colour_inputs_agree_on_a_grey_scene():
+    left, right = shifted_pair(7, seed=5)
+    grey = birchfield(left, right, 15)
+    bgr = birchfield(cv2.cvtColor(left, cv2.COLOR_GRAY2BGR), cv2.cvtColor(right,
+                     cv2.COLOR_GRAY2BGR), 15)
+    np.testing.assert_array_equal(grey, bgr)
+
+
+def test_threads_do_not_change_the_result():
+    left, right = box_pair(2, 9, (40, 90, 10, 50), seed=6)
+    np.testing.assert_array_equal(birchfield(left, right, 15, threads=1),
+                                  birchfield(left, right, 15, threads=2))
+
+
+def test_masked_pixels_get_no_disparity():
+    left, right = shifted_pair(4, seed=7)
+    lmask = np.ones(left.shape, bool)
+    lmask[:, 100:] = False  # e.g. rectification fill on the right side of the left image
+    disp = birchfield(left, right, 15, left_mask=lmask, subpixel="none")
+    assert np.isnan(disp[:, 100:]).all()
+    np.testing.assert_array_equal(disp[:, 4:100], 4)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="counts threads in /proc")
+def test_no_worker_threads_left_running():
+    """Rows run on short-lived Python threads, not on numba's parallel layer, whose OpenMP
+    workers would stay behind spinning and slow the OpenCV/numpy stages that follow. A fresh
+    process, so that no earlier call has started such workers already."""
+    code = (
+        "import os, numpy as np\n"
+        "from armstereo.stereo import birchfield\n"
+        "img = np.random.default_rng(0).integers(0, 255, (40, 80), dtype=np.uint8)\n"
+        "before = len(os.listdir('/proc/self/task'))\n"
+        "birchfield(img, img, 8, threads=2)\n"
+        "print(before, len(os.listdir('/proc/self/task')))\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=300, check=True)
+    before, after = proc.stdout.split()
+    assert after == before
+
+
+# --- bad input ------------------------------------------------------------------------------
+
+GOOD = np.zeros((20, 40), np.uint8)
+
+
+@pytest.mark.parametrize("match", [birchfield, sgbm])
+@pytest.mark.parametrize("left, right, max_disparity, message", [
+    (GOOD, np.zeros((20, 41), np.uint8), 8, "sizes differ"),
+    (GOOD, np.zeros((20, 40, 3), np.uint8), 8, "sizes differ"),
+    (np.zeros((0, 40), np.uint8), np.zeros((0, 40), np.uint8), 8, "empty"),
+    (GOOD, np.zeros((20, 0), np.uint8), 8, "empty"),
+    (GOOD.astype(np.float32), GOOD, 8, "uint8"),
+    (np.zeros((20, 40, 4), np.uint8), np.zeros((20, 40, 4), np.uint8), 8, "BGR"),
+    ([[0]], GOOD, 8, "numpy array"),
+    (GOOD, GOOD, 0, "max_disparity must be >= 1"),
+    (GOOD, GOOD, -3, "max_disparity must be >= 1"),
+    (GOOD, GOOD, 40, "must be < the image width 40"),
+    (GOOD, GOOD, 8.0, "must be an integer"),
+])
+def test_bad_input_is_a_clear_stereo_error(match, left, right, max_disparity, message):
+    with pytest.raises(StereoError, match=message):
+        match(left, right, max_disparity)
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    (dict(min_disparity=-1), "min_disparity must be >= 0"),
+    (dict(min_disparity=35), "must be < the image width"),
+    (dict(color="rgb"), "color='rgb' is not one of"),
+    (dict(subpixel="cubic"), "subpixel"),
+    (dict(search="greedy"), "search"),
+    (dict(occlusions="zero"), "occlusions"),
+    (dict(occlusion_penalty=-1), "must be >= 0"),
+    (dict(threads=0), "threads must be >= 1"),
+    (dict(left_mask=np.ones((5, 5), bool)), "left_mask has shape"),
+])
+def test_bad_options_are_clear_stereo_errors(kwargs, message):
+    with pytest.raises(StereoError, match=message):
+        birchfield(GOOD, GOOD, 8, **kwargs)
+
+
+def test_rows_too_wide_for_exact_costs_are_refused():
+    wide = np.zeros((1, 40_000), np.uint8)  # the float32 programme is exact up to ~32,000 px
+    with pytest.raises(StereoError, match="exceeds .* the widest row"):
+        birchfield(wide, wide, 8)
+
+
+def test_unknown_method_is_a_stereo_error():
+    with pytest.raises(StereoError, match="unknown stereo method 'bm'"):
+        compute_disparity(GOOD, GOOD, 8, method="bm")
+
+
+# --- a real pair ----------------------------------------------------------------------------
+
+def test_tsukuba_bad2_below_the_measured_bound():
+    folder = MIDDLEBURY / "tsukuba"
+    meta = json.loads((folder / "meta.json").read_text())
+    left = cv2.imread(str(folder / meta["left"]))
+    right = cv2.imread(str(folder / meta["right"]))
+    gt = read_disparity(folder / meta["gt"], scale=meta["gt_scale"])
+    mask = cv2.imread(str(folder / meta["masks"]["nonocc"]), cv2.IMREAD_GRAYSCALE) > 128
+    disp = birchfield(left, right, meta["max_disp"])
+    scores = evaluate_disparity(disp, gt, mask, exclude_left=meta["max_disp"])
+    assert scores["bad2"] < TSUKUBA_BAD2_BOUND
+    assert scores["median_error"] < 0.5
