@@ -1,0 +1,10 @@
+"""An emulated UR controller for integration tests of the real ur_rtde client.
+
+It serves RTDE (30004), the dashboard server (29999) and the script port (30003) on a loopback
+address of its own, in a separate process, and plays ur_rtde's control-script register
+protocol instead of running URScript. Modules: ``protocol`` (RTDE wire format), ``rtde_server``
+(sessions and the controller clock), ``servers`` (ports, dashboard, script upload),
+``controller`` (arm state, modes, program life cycle, faults), ``script`` (the register
+protocol), ``motion`` (moveJ/moveL trajectories), ``faults`` (fault switches), ``harness``
+(starting and steering it from a test). Run it with ``python -m rtde_emulator --help``.
+"""
