@@ -19,6 +19,7 @@ from armstereo import __version__
 from armstereo.accuracy import DepthAccuracy, score_depth, visible_mask
 from armstereo.capture import CaptureSettings, plan_capture
 from armstereo.capture.backends import build_arm, build_camera
+from armstereo.capture.plan import validate_settings
 from armstereo.cli.capture_cmd import capture_to_file
 from armstereo.errors import RecordingError
 from armstereo.kinematics import ArmModel
@@ -45,11 +46,21 @@ class DemoOptions:
     joint_noise: float = 0.0
 
 
+def demo_settings(options: DemoOptions) -> CaptureSettings:
+    """The demo's capture settings; raises ConfigError for an out-of-range option, so callers
+    can check before they make a folder or show progress."""
+    settings = CaptureSettings(baseline=options.baseline, direction=np.array([1.0, 0.0, 0.0]),
+                               pairs=1)
+    validate_settings(settings)
+    return settings
+
+
 def run_demo(out_dir: Path, options: DemoOptions = DemoOptions(),
              progress: Callable[[str], None] = lambda s: None) -> dict:
     """Capture, reconstruct, write the demo files into ``out_dir`` and return the report."""
     from drivers.mock.scene import default_table_scene
 
+    settings = demo_settings(options)
     out_dir.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
     timings: dict[str, float] = {}
@@ -59,8 +70,6 @@ def run_demo(out_dir: Path, options: DemoOptions = DemoOptions(),
     t0 = time.perf_counter()
     model = ArmModel.load(options.robot, mount=CameraMount.load(None))
     arm = build_arm("mock", model, joint_noise=options.joint_noise, seed=options.seed)
-    settings = CaptureSettings(baseline=options.baseline, direction=np.array([1.0, 0.0, 0.0]),
-                               pairs=1)
     with arm:
         plan = plan_capture(model, arm.joint_positions(), settings)
         camera = build_camera("mock", model, arm, noise=options.camera_noise, seed=options.seed,

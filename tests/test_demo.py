@@ -57,3 +57,11 @@ def test_demo_accuracy_is_measured_against_ground_truth(demo_dir):
 def test_demo_refuses_a_folder_that_holds_a_previous_demo(demo_dir, capsys):
     assert main(["demo", "--out", str(demo_dir)]) == 2
     assert "already holds demo files" in capsys.readouterr().err
+
+
+def test_bad_option_fails_before_a_folder_is_made(tmp_path, capsys):
+    out = tmp_path / "never"
+    assert main(["demo", "--baseline", "5", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "--baseline must be in" in err and err.count("\n") == 1
+    assert not out.exists()

@@ -160,7 +160,7 @@ def plan_capture(model: ArmModel, q_start: np.ndarray, settings: CaptureSettings
     Never raises for a failed check (so --dry-run can show them all); call
     ``plan.require_ok()`` before moving. Raises ConfigError for malformed settings.
     """
-    _validate_settings(settings)
+    validate_settings(settings)
     q_start = np.asarray(q_start, dtype=float)
     T0 = model.flange_pose(q_start)
     R_base_camera = (T0 @ model.mount.T_flange_camera)[:3, :3]
@@ -179,7 +179,8 @@ def plan_capture(model: ArmModel, q_start: np.ndarray, settings: CaptureSettings
     return CapturePlan(settings, q_start, poses, q_views, cams, checks, duration)
 
 
-def _validate_settings(s: CaptureSettings) -> None:
+def validate_settings(s: CaptureSettings) -> None:
+    """Raise ConfigError naming the option if ``s`` is out of range (before anything moves)."""
     if not (0 < s.baseline <= MAX_BASELINE_M):
         raise ConfigError(f"--baseline must be in (0, {MAX_BASELINE_M}] m, got {s.baseline}")
     if not (1 <= s.pairs <= MAX_PAIRS):

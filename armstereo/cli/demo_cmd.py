@@ -7,7 +7,7 @@ import sys
 import time
 from pathlib import Path
 
-from armstereo.demo import DEFAULT_BASELINE_M, DEMO_FILES, DemoOptions, run_demo
+from armstereo.demo import DEFAULT_BASELINE_M, DEMO_FILES, DemoOptions, demo_settings, run_demo
 from armstereo.errors import ConfigError
 
 TARGET_MEDIAN_REL_ERROR = 0.005
@@ -30,10 +30,12 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    options = DemoOptions(robot=args.robot, baseline=args.baseline, method=args.method,
+                          seed=args.seed)
+    demo_settings(options)  # bad options fail here, before a folder is made
     out = _out_dir(args.out)
     progress(f"armstereo demo -> {out}/")
-    report = run_demo(out, DemoOptions(robot=args.robot, baseline=args.baseline,
-                                       method=args.method, seed=args.seed), progress)
+    report = run_demo(out, options, progress)
     _print_summary(report, out)
     return 0
 

@@ -152,6 +152,10 @@ class OpenCVCamera(Camera):
 
     # ------------------------------------------------------------------ worker-thread jobs
     def _open(self):
+        if not log.isEnabledFor(logging.DEBUG):
+            # a failed open is reported by our own one-line error; OpenCV's backend probing
+            # warnings (e.g. FFMPEG "should be configured with libavdevice") only confuse
+            cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)
         cap = cv2.VideoCapture(self.device, self.api)
         if not cap.isOpened():
             cap.release()
