@@ -14,7 +14,7 @@ import numpy as np
 
 from armstereo.camera_model import Intrinsics
 from armstereo.errors import StereoError
-from armstereo.transforms import invert
+from armstereo.transforms import invert, transform_points
 
 OCCLUSION_TOLERANCE = 0.01  # relative depth difference that still counts as "the same surface"
 
@@ -51,7 +51,7 @@ def visible_mask(depth_left: np.ndarray, intr_left: Intrinsics, T_base_left: np.
     y = (v - intr_left.cy) / intr_left.fy * z
     p_left = np.stack([x, y, z], axis=-1)[ok]
     T_right_left = invert(T_base_right) @ T_base_left
-    p_right = p_left @ T_right_left[:3, :3].T + T_right_left[:3, 3]
+    p_right = transform_points(T_right_left, p_left)
     zr = p_right[:, 2]
     ur = intr_right.fx * p_right[:, 0] / zr + intr_right.cx
     vr = intr_right.fy * p_right[:, 1] / zr + intr_right.cy

@@ -47,6 +47,8 @@ def write_disparity(path: str | Path, disp: np.ndarray) -> None:
 def read_disparity(path: str | Path, scale: float | None = None) -> np.ndarray:
     """Read ``.pfm`` or ``.png`` disparity as float32, NaN = none (see module doc)."""
     path = Path(path)
+    if scale is not None and scale <= 0:
+        raise StereoError(f"disparity scale must be > 0, got {scale}")
     suffix = path.suffix.lower()
     if suffix == ".pfm":
         disp = read_pfm(path)
@@ -123,8 +125,6 @@ def _read_png(path: Path, scale: float | None) -> np.ndarray:
         data = data[:, :, 0]  # Middlebury 2001 ground truth: three identical channels
     if scale is None:
         scale = PNG_SCALE if data.dtype == np.uint16 else 1.0
-    if scale <= 0:
-        raise StereoError(f"disparity scale must be > 0, got {scale}")
     disp = data.astype(np.float32) / np.float32(scale)
     disp[data == 0] = np.nan
     return disp

@@ -27,7 +27,7 @@ from armstereo.errors import ConfigError, RecordingError
 from armstereo.ply import write_ply
 from armstereo.recording import Pair, RecordingWriter
 from armstereo.rectify import RectifiedPair, StereoGeometry, rectified_geometry, rectify_pair
-from armstereo.stereo import compute_disparity
+from armstereo.stereo import METHODS, compute_disparity
 from armstereo.triangulate import (
     depth_from_disparity,
     depth_in_original_view,
@@ -51,7 +51,6 @@ TABLE_NEAR_SHARE = 0.5  # near = this x the nearest table point (objects up to h
 MAX_TABLE_DEPTH_M = 3.0  # a table seen farther than this is not a useful hint
 MAX_AUTO_DISPARITY = 256
 DISPARITY_MARGIN_PX = 2  # extra labels beyond the computed window (rounding, pose error)
-METHODS = ("birchfield", "sgbm")
 TOPIC_DEPTH_ESTIMATE = "/reconstruction/depth"  # float32 m, original left view (camera_optical)
 TOPIC_RECTIFIED_LEFT = "/reconstruction/rectified_left"
 TOPIC_RECTIFIED_RIGHT = "/reconstruction/rectified_right"
@@ -83,7 +82,6 @@ class Reconstruction:
     plan: DisparityPlan
     rectified: RectifiedPair
     disparity: np.ndarray
-    depth_rect: np.ndarray
     points_base: np.ndarray
     colors: np.ndarray
     depth_truth: np.ndarray | None  # ground truth of the ORIGINAL left view, if recorded
@@ -92,9 +90,19 @@ class Reconstruction:
     timings_s: dict[str, float] = field(default_factory=dict)
 
     @cached_property
+    def depth_rect(self) -> np.ndarray:
+        """Depth (m) of each rectified left pixel along the rectified optical axis."""
+        return depth_from_disparity(self.disparity, self.rectified.geometry)
+
+    @cached_property
     def depth_original(self) -> np.ndarray:
         """Depth (m) for each pixel of the original left image (for scoring against truth)."""
         return depth_in_original_view(self.disparity, self.rectified)
+
+    @cached_property
+    def disparity_colorized(self) -> np.ndarray:
+        """The disparity as a colour image over the searched window (PNG and MCAP share it)."""
+        return colorize_disparity(self.disparity, 0, self.plan.max_disparity)
 
     @property
     def pipeline_time_s(self) -> float:
@@ -243,14 +251,12 @@ def reconstruct_pair(pair: Pair, *, method: str = "birchfield", max_disparity: i
         disparity = compute_disparity(rect.left, rect.right, plan.max_disparity, method=method,
                                       min_disparity=0, left_mask=rect.left_mask,
                                       right_mask=rect.right_mask, **(stereo_options or {}))
-        disparity = np.where(rect.left_mask, disparity, np.nan).astype(np.float32)
     with _Timer(timings, "triangulate"):
-        depth = depth_from_disparity(disparity, rect.geometry)
-        points, colors = point_cloud(disparity, rect.geometry, rect.left, mask=rect.left_mask)
+        points, colors = point_cloud(disparity, rect.geometry, rect.left)
     left, right = (pair.right, pair.left) if swapped else (pair.left, pair.right)
     return Reconstruction(
         pair_index=pair.index, left_view=left.index, right_view=right.index, swapped=swapped,
-        method=method, plan=plan, rectified=rect, disparity=disparity, depth_rect=depth,
+        method=method, plan=plan, rectified=rect, disparity=disparity,
         points_base=points, colors=colors, depth_truth=getattr(left, "depth", None),
         timestamp_ns=int(left.timestamp_ns), timings_s=timings, source_pair=pair)
 
@@ -283,9 +289,7 @@ def write_outputs(recon: Reconstruction, out_dir: str | Path, prefix: str, *,
                                            "metres")
     with _Timer(recon.timings_s, "write_extras"):
         written["depth"] = write_depth_png(paths["depth"], recon.depth_original)
-        written["disparity"] = write_png(paths["disparity"],
-                                         colorize_disparity(recon.disparity, 0,
-                                                            recon.plan.max_disparity))
+        written["disparity"] = write_png(paths["disparity"], recon.disparity_colorized)
         written["rectified"] = write_png(paths["rectified"],
                                          side_by_side(recon.rectified.left,
                                                       recon.rectified.right))
@@ -334,8 +338,7 @@ def write_reconstruction_mcap(recon: Reconstruction, path: str | Path, *,
                       frame_id=FRAME_RECTIFIED_LEFT)
         w.write_image(TOPIC_RECTIFIED_RIGHT, recon.rectified.right, t_left,
                       frame_id=FRAME_RECTIFIED_LEFT)
-        w.write_image(TOPIC_DISPARITY, colorize_disparity(recon.disparity, 0,
-                                                          recon.plan.max_disparity), t_left,
+        w.write_image(TOPIC_DISPARITY, recon.disparity_colorized, t_left,
                       frame_id=FRAME_RECTIFIED_LEFT)
         w.write_point_cloud(recon.points_base, recon.colors, t_cloud)
     return Path(path)

@@ -31,7 +31,7 @@ import numpy as np
 
 from armstereo.camera_model import Intrinsics
 from armstereo.errors import StereoError
-from armstereo.transforms import make_T
+from armstereo.transforms import invert, make_T
 
 log = logging.getLogger(__name__)
 
@@ -302,10 +302,6 @@ class StereoGeometry:
         return np.array([[self.fx, 0, self.cx_left], [0, self.fy, self.cy], [0, 0, 1.0]])
 
     @property
-    def K_right(self) -> np.ndarray:
-        return np.array([[self.fx, 0, self.cx_right], [0, self.fy, self.cy], [0, 0, 1.0]])
-
-    @property
     def T_base_rectleft(self) -> np.ndarray:
         """Pose of the rectified left camera in ``base`` (4x4)."""
         return make_T(self.R_rect.T, self.c_left)
@@ -368,30 +364,9 @@ class RectifiedPair:
     rotation_deg: float  # in-plane rotation the rectification applies to the left image
 
     @property
-    def left_source(self) -> int:
-        """Which input became the left image: 1 or 2."""
-        return 2 if self.swapped else 1
-
-    @property
     def size(self) -> tuple[int, int]:
         """Rectified canvas (width, height)."""
         return self.geometry.size
-
-    @property
-    def fx(self) -> float:
-        return self.geometry.fx
-
-    @property
-    def cx_left(self) -> float:
-        return self.geometry.cx_left
-
-    @property
-    def cx_right(self) -> float:
-        return self.geometry.cx_right
-
-    @property
-    def cy(self) -> float:
-        return self.geometry.cy
 
     @property
     def baseline(self) -> float:
@@ -402,16 +377,9 @@ class RectifiedPair:
         return self.geometry.Q
 
     @property
-    def T_base_rectleft(self) -> np.ndarray:
-        return self.geometry.T_base_rectleft
-
-    @property
     def R_left_cv(self) -> np.ndarray:
         """Rotation from the original left camera frame to the rectified left camera frame."""
         return self.geometry.R_rect @ self.T_base_left_camera[:3, :3]
-
-    def disparity_window(self, near: float, far: float) -> tuple[float, float]:
-        return self.geometry.disparity_window(near, far)
 
 
 @dataclass(frozen=True)
@@ -421,8 +389,7 @@ class _View:
 
     @property
     def ppm(self) -> np.ndarray:
-        R = self.T_base_camera[:3, :3]
-        return self.intrinsics.K @ np.hstack([R.T, (-R.T @ self.T_base_camera[:3, 3])[:, None]])
+        return self.intrinsics.projection(invert(self.T_base_camera))
 
 
 def _check_pose(T: np.ndarray, name: str) -> np.ndarray:

@@ -36,20 +36,25 @@ def _check(disparity: np.ndarray, geometry: StereoGeometry) -> np.ndarray:
     return disparity
 
 
+def _depth(disparity: np.ndarray, geometry: StereoGeometry) -> np.ndarray:
+    """Float64 rectified depth ``fx b / (d - offset)``; NaN where that is not positive or d is
+    NaN."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        shifted = disparity.astype(np.float64) - geometry.disparity_offset
+        return np.where(shifted > 0, geometry.fx * geometry.baseline / shifted, np.nan)
+
+
 def depth_from_disparity(disparity: np.ndarray, geometry: StereoGeometry) -> np.ndarray:
     """Depth (m) along the rectified optical axis for every left pixel; NaN where unknown."""
     disparity = _check(disparity, geometry)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        shifted = disparity.astype(np.float64) - geometry.disparity_offset
-        depth = np.where(shifted > 0, geometry.fx * geometry.baseline / shifted, np.nan)
-    return depth.astype(_out_dtype(disparity))
+    return _depth(disparity, geometry).astype(_out_dtype(disparity))
 
 
 def points_rect(disparity: np.ndarray, geometry: StereoGeometry) -> np.ndarray:
     """HxWx3 points (m) in the rectified-left camera frame (x right, y down, z forward); NaN rows
     where the depth is unknown."""
     disparity = _check(disparity, geometry)
-    z = depth_from_disparity(disparity.astype(np.float64), geometry)
+    z = _depth(disparity, geometry)
     h, w = disparity.shape
     u = np.arange(w, dtype=np.float64)[None, :]
     v = np.arange(h, dtype=np.float64)[:, None]
@@ -142,9 +147,8 @@ def depth_in_original_view(disparity: np.ndarray, rectified: RectifiedPair) -> n
     den = cv2.remap(known.astype(np.float32), mx, my, cv2.INTER_LINEAR,
                     borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
     with np.errstate(invalid="ignore", divide="ignore"):
-        d = np.where(den >= VALID_WEIGHT, num / den, np.nan).astype(np.float64)
-        shifted = d - geometry.disparity_offset
-        z_rect = np.where(shifted > 0, geometry.fx * geometry.baseline / shifted, np.nan)
+        d = np.where(den >= VALID_WEIGHT, num / den, np.nan)
+    z_rect = _depth(d, geometry)
     # Normalised rectified ray (x', y', 1) of each original pixel, rotated back to the original
     # camera: its z component scales rectified depth to original depth.
     xr = (mx.astype(np.float64) - geometry.cx_left) / geometry.fx
