@@ -24,14 +24,13 @@ import numpy as np
 from mcap.writer import CompressionType
 
 from armstereo.camera_model import Intrinsics
+from armstereo.kinematics import JOINT_NAMES
 from armstereo.recording import RecordingWriter
 from armstereo.recording.writer import JPEG_QUALITY, PNG_PARAMS
 from armstereo.transforms import make_T, rot_x
 from drivers.base import Frame
 
 WIDTH, HEIGHT = 640, 480
-JOINTS = ("shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint",
-          "wrist_2_joint", "wrist_3_joint")
 
 
 # PNG settings compared: the writer's default and OpenCV's explicit compression levels (which
@@ -123,7 +122,8 @@ def run(setting: Setting, views, directory: str) -> tuple[float, float]:
             if not setting.depth:
                 frame = Frame(frame.image, frame.timestamp_ns)
             T_base_flange = make_T(rot_x(np.pi), [0.4 + 0.001 * k, 0.1, 0.5])
-            w.write_view(k, frame, q, JOINTS, T_base_flange, T_flange_camera, settle_s=0.5)
+            w.write_view(k, frame, q, JOINT_NAMES, T_base_flange, T_flange_camera,
+                         settle_s=0.5)
             if k:
                 w.write_pair(k - 1, k - 1, k, 0.1, 0.1, "x")
     elapsed = time.perf_counter() - start

@@ -10,14 +10,13 @@ import pytest
 
 from armstereo.camera_model import Intrinsics
 from armstereo.errors import ConfigError, RecordingError
+from armstereo.kinematics import JOINT_NAMES as JOINTS
 from armstereo.recording import Recording, RecordingWriter
 from armstereo.recording import schemas as S
 from armstereo.recording.writer import _signals_deferred
 from armstereo.transforms import make_T, rot_x, rot_y, rot_z
 from drivers.base import Frame
 
-JOINTS = ("shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint",
-          "wrist_2_joint", "wrist_3_joint")
 T0_NS = 1_700_000_000_123_456_789  # realistic epoch nanoseconds: needs all 64 bits of care
 BASELINE = 0.05
 

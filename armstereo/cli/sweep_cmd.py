@@ -19,6 +19,7 @@ from armstereo.mount import CameraMount
 from armstereo.pipeline import reconstruct_pair
 from armstereo.recording import Recording
 from armstereo.sweep import Target, best_baseline, format_table, plot, run_sweep, write_csv
+from drivers.base import MotionLimits
 
 DEFAULT_BASELINES = "0.025,0.05,0.075,0.1,0.15,0.2,0.3"
 DEFAULT_DISTANCES = "0.8,1.1,1.4,1.7,2.0,2.2"
@@ -37,7 +38,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "distance (m); repeat for each target")
     p.add_argument("--out", default=None, help="output folder (default ./armstereo-sweep-<time>)")
     p.add_argument("--method", choices=["birchfield", "sgbm"], default="birchfield")
-    p.add_argument("--speed", type=float, default=0.05, help="linear speed cap (m/s)")
+    p.add_argument("--speed", type=float, default=MotionLimits.linear_speed,
+                   help="linear speed cap (m/s)")
     p.add_argument("--settle", type=float, default=0.5, help="settle time before a shot (s)")
     p.add_argument("--yes", action="store_true", help="allow live motion without asking")
     add_backend_args(p)
@@ -85,8 +87,6 @@ def _floats(text: str, flag: str) -> list[float]:
 
 
 def _settings(args: argparse.Namespace, b: float) -> CaptureSettings:
-    from drivers.base import MotionLimits
-
     return CaptureSettings(baseline=b, direction=np.array([1.0, 0.0, 0.0]), pairs=1,
                            settle_s=args.settle, limits=MotionLimits(linear_speed=args.speed))
 

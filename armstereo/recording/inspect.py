@@ -9,11 +9,10 @@ from __future__ import annotations
 from armstereo.errors import RecordingError
 from armstereo.recording.reader import Recording, View
 
-MULTILINE_PREVIEW = 1  # text form: multi-line metadata values show their line count only
-
 
 def summarize(rec: Recording) -> dict:
     """The JSON-ready summary of an opened recording (keys documented in the README)."""
+    views = {v.index: v for v in rec.views}
     return {
         "file": str(rec.path),
         "size_bytes": rec.size_bytes,
@@ -23,15 +22,14 @@ def summarize(rec: Recording) -> dict:
         "views": len(rec.views),
         "channels": [{"topic": c.topic, "schema": c.schema, "encoding": c.encoding,
                       "messages": c.messages} for c in rec.channels],
-        "pairs": [_pair_entry(rec, event) for event in rec.pair_events],
+        "pairs": [_pair_entry(views, event) for event in rec.pair_events],
         "calibration": _calibration_entry(rec),
         "metadata": dict(rec.metadata),
         "warnings": list(rec.warnings),
     }
 
 
-def _pair_entry(rec: Recording, event: dict) -> dict:
-    views = {v.index: v for v in rec.views}
+def _pair_entry(views: dict[int, View], event: dict) -> dict:
     left, right = views.get(event["left_view"]), views.get(event["right_view"])
     return {
         "pair": event["pair"], "left_view": event["left_view"],
@@ -81,7 +79,7 @@ def format_text(summary: dict) -> str:
     lines.append("calibration: " + _calibration_line(summary["calibration"]))
     lines.append("metadata:" if summary["metadata"] else "metadata: none")
     for key, value in summary["metadata"].items():
-        if value.count("\n") >= MULTILINE_PREVIEW:
+        if "\n" in value:  # a multi-line value (e.g. mount_toml) shows its line count only
             value = f"({value.count(chr(10)) + 1} lines; see --json)"
         lines.append(f"  {key}: {value}")
     lines.append(f"warnings: {len(summary['warnings'])}" if summary["warnings"]
