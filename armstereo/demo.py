@@ -27,7 +27,7 @@ from armstereo.mount import CameraMount
 from armstereo.pipeline import reconstruct_pair, write_reconstruction_mcap
 from armstereo.ply import write_ply
 from armstereo.recording import Recording
-from armstereo.visualize import colorize_disparity, depth_error_map, side_by_side, write_png
+from armstereo.visualize import depth_error_map, side_by_side, write_png
 
 DEFAULT_BASELINE_M = 0.08
 DEMO_FILES = ("demo.mcap", "points.ply", "disparity.png", "rectified.png", "depth_error.png",
@@ -109,8 +109,7 @@ def run_demo(out_dir: Path, options: DemoOptions = DemoOptions(),
 def _write_products(recon, out_dir: Path) -> None:
     write_ply(out_dir / "points.ply", recon.points_base, recon.colors,
               comment="armstereo demo, frame base, metres")
-    write_png(out_dir / "disparity.png",
-              colorize_disparity(recon.disparity, 0, recon.plan.max_disparity))
+    write_png(out_dir / "disparity.png", recon.disparity_colorized)
     write_png(out_dir / "rectified.png", side_by_side(recon.rectified.left, recon.rectified.right))
     write_png(out_dir / "depth_error.png", depth_error_map(recon.depth_original,
                                                           recon.depth_truth))
