@@ -64,7 +64,8 @@ class CameraMount:
         t = np.asarray(he["translation"], dtype=float)
         if "rotation_matrix" in he:
             R = np.asarray(he["rotation_matrix"], dtype=float)
-            if R.shape != (3, 3) or not np.allclose(R @ R.T, np.eye(3), atol=1e-6):
+            if (R.shape != (3, 3) or not np.allclose(R @ R.T, np.eye(3), atol=1e-6)
+                    or np.linalg.det(R) < 0):
                 raise ConfigError("hand_eye.rotation_matrix must be a 3x3 rotation")
         else:
             roll, pitch, yaw = (float(v) for v in he.get("rotation_rpy", [0.0, 0.0, 0.0]))

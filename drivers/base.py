@@ -8,6 +8,7 @@ arrays in the controller's ``base`` frame. Images are numpy uint8, BGR when colo
 from __future__ import annotations
 
 import enum
+import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 
@@ -58,6 +59,16 @@ MAX_JOINT_SPEED = 1.0
 MAX_JOINT_ACCELERATION = 2.0
 MAX_LINEAR_SPEED = 0.25
 MAX_LINEAR_ACCELERATION = 1.0
+
+
+def trapezoid_duration(distance: float, speed: float, acceleration: float) -> float:
+    """Duration (s) of a rest-to-rest trapezoidal move: ``d/v + v/a`` when the cruise speed is
+    reached (``d >= v^2/a``), else the triangular ``2 sqrt(d/a)``."""
+    if distance <= 0:
+        return 0.0
+    if distance >= speed * speed / acceleration:
+        return distance / speed + speed / acceleration
+    return 2.0 * math.sqrt(distance / acceleration)
 
 
 class Arm(ABC):

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from armstereo.errors import ConfigError, IKError, PreflightError
+from armstereo.errors import ConfigError, IKError, JointLimitError, PreflightError
 from armstereo.kinematics import ArmModel
 from drivers.base import (
     MAX_JOINT_ACCELERATION,
@@ -22,6 +22,7 @@ from drivers.base import (
     MAX_LINEAR_ACCELERATION,
     MAX_LINEAR_SPEED,
     MotionLimits,
+    trapezoid_duration,
 )
 
 NAMED_DIRECTIONS = {
@@ -169,10 +170,12 @@ def plan_capture(model: ArmModel, q_start: np.ndarray, settings: CaptureSettings
     poses = [_translated(T0, k * step) for k in range(n_views)]
     checks = [_check_speed(settings.limits), _check_direction(settings),
               _check_start(model, q_start, settings)]
-    samples = _sample_path(model, q_start, T0, step * settings.pairs, settings.path_step)
+    # Every view is a path sample, so the views' joints come from the path's IK.
+    per_pair = max(1, math.ceil(settings.baseline / settings.path_step))
+    samples = _sample_path(model, q_start, T0, step, per_pair, settings.pairs)
     box = settings.workspace or Workspace.around(model)
     checks += _check_path(model, samples, settings, box)
-    q_views = _view_joints(model, q_start, poses)
+    q_views = _view_joints(q_start, samples, per_pair, n_views)
     checks.append(_check_travel(q_views, settings))
     cams = [(T @ model.mount.T_flange_camera)[:3, 3] for T in poses]
     duration = _estimate_duration(settings, n_views)
@@ -216,27 +219,21 @@ def _check_direction(s: CaptureSettings) -> Check:
 
 
 def _check_start(model: ArmModel, q: np.ndarray, s: CaptureSettings) -> Check:
-    if not model.within_limits(q, s.joint_margin):
-        return Check("start pose", False, _limit_detail(model, q, s.joint_margin))
+    try:
+        model.check_limits(q, s.joint_margin)
+    except JointLimitError as err:
+        return Check("start pose", False, str(err))
     return Check("start pose", True, "current joints inside limits with "
                  f"{s.joint_margin:.2f} rad margin")
 
 
-def _limit_detail(model: ArmModel, q: np.ndarray, margin: float) -> str:
-    try:
-        model.check_limits(q, margin)
-    except Exception as err:  # noqa: BLE001 - we only want its message
-        return str(err)
-    return "inside limits"
-
-
-def _sample_path(model: ArmModel, q_start: np.ndarray, T0: np.ndarray, total: np.ndarray,
-                 step: float) -> list[tuple[np.ndarray, np.ndarray | None, str]]:
-    """IK every ``step`` m along the straight flange path: (T_base_flange, q or None, error)."""
-    n = max(1, math.ceil(float(np.linalg.norm(total)) / step))
+def _sample_path(model: ArmModel, q_start: np.ndarray, T0: np.ndarray, step: np.ndarray,
+                 per_pair: int, pairs: int) -> list[tuple[np.ndarray, np.ndarray | None, str]]:
+    """IK ``per_pair`` times per baseline ``step`` along the straight flange path (sample
+    ``k * per_pair`` is view ``k``): (T_base_flange, q or None, error), up to the first failure."""
     out, q = [], q_start
-    for i in range(n + 1):
-        T = _translated(T0, total * (i / n))
+    for i in range(per_pair * pairs + 1):
+        T = _translated(T0, (i / per_pair) * step)
         try:
             q = model.ik(T, q)
             out.append((T, q, ""))
@@ -257,9 +254,9 @@ def _check_path(model: ArmModel, samples, s: CaptureSettings, box: Workspace) ->
     margins = np.minimum(qs - model.lower, model.upper - qs).min(axis=1)
     sigmas = np.array([model.sigma_min(q) for q in qs])
     jumps = np.abs(np.diff(qs, axis=0)).max(axis=1) if len(qs) > 1 else np.zeros(1)
-    outside = [T[:3, 3] for T, _, _ in samples if not box.contains(T[:3, 3])]
-    outside += [(T @ model.mount.T_flange_camera)[:3, 3] for T, _, _ in samples
-                if not box.contains((T @ model.mount.T_flange_camera)[:3, 3])]
+    flanges = [T[:3, 3] for T, _, _ in samples]
+    cameras = [(T @ model.mount.T_flange_camera)[:3, 3] for T, _, _ in samples]
+    outside = [p for p in flanges + cameras if not box.contains(p)]
     checks = [
         Check("IK along the path", True, f"{len(qs)} samples every {s.path_step * 1000:.0f} mm"),
         Check("joint limits", bool(margins.min() >= s.joint_margin),
@@ -278,16 +275,13 @@ def _check_path(model: ArmModel, samples, s: CaptureSettings, box: Workspace) ->
     return checks
 
 
-def _view_joints(model: ArmModel, q_start: np.ndarray, poses: list[np.ndarray]) -> list:
-    """IK per view, warm-started from the previous view; NaN from the first unreachable one."""
-    qs, q = [q_start], q_start
-    for T in poses[1:]:
-        if np.all(np.isfinite(q)):
-            try:
-                q = model.ik(T, q)
-            except IKError:
-                q = np.full(6, np.nan)
-        qs.append(q)
+def _view_joints(q_start: np.ndarray, samples, per_pair: int, n_views: int) -> list:
+    """Joints per view, taken from the path samples; NaN from the first unreachable one."""
+    qs = [q_start]
+    for k in range(1, n_views):
+        i = k * per_pair
+        q = samples[i][1] if i < len(samples) else None
+        qs.append(np.full(6, np.nan) if q is None else q)
     return qs
 
 
@@ -299,17 +293,8 @@ def _check_travel(q_views: list[np.ndarray], s: CaptureSettings) -> Check:
                  f"(needs <= {s.max_joint_travel})")
 
 
-def trapezoid_time(distance: float, speed: float, acceleration: float) -> float:
-    """Duration (s) of a rest-to-rest move with a trapezoidal (or triangular) speed profile."""
-    if distance <= 0:
-        return 0.0
-    if distance >= speed * speed / acceleration:
-        return distance / speed + speed / acceleration
-    return 2.0 * math.sqrt(distance / acceleration)
-
-
 def _estimate_duration(s: CaptureSettings, n_views: int) -> float:
     lim = s.limits
-    move = trapezoid_time(s.baseline, lim.linear_speed, lim.linear_acceleration)
-    back = trapezoid_time(s.baseline * s.pairs, lim.linear_speed, lim.linear_acceleration)
+    move = trapezoid_duration(s.baseline, lim.linear_speed, lim.linear_acceleration)
+    back = trapezoid_duration(s.baseline * s.pairs, lim.linear_speed, lim.linear_acceleration)
     return (n_views - 1) * move + back + n_views * s.settle_s

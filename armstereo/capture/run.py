@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from armstereo.capture.plan import CapturePlan
-from armstereo.kinematics import JOINT_NAMES, ArmModel
+from armstereo.kinematics import ArmModel
 from drivers.base import Arm, Camera
 
 log = logging.getLogger(__name__)
@@ -83,7 +83,7 @@ def _shoot(arm: Arm, camera: Camera, model: ArmModel, plan: CapturePlan, writer,
     frame = camera.grab()
     q = arm.joint_positions()
     T_base_flange = model.flange_pose(q)
-    writer.write_view(k, frame, q, JOINT_NAMES, T_base_flange, model.mount.T_flange_camera,
+    writer.write_view(k, frame, q, model.joint_names, T_base_flange, model.mount.T_flange_camera,
                       settle_s=plan.settings.settle_s)
     log.debug("view %d recorded at q=%s", k, np.round(q, 5))
     return (T_base_flange @ model.mount.T_flange_camera)[:3, 3]

@@ -26,7 +26,7 @@ from armstereo.errors import (
     MotionTimeout,
     ProtectiveStop,
 )
-from armstereo.transforms import matrix_to_rotvec, rotvec_to_matrix
+from armstereo.transforms import make_T, matrix_to_rotvec, rotvec_to_matrix
 from drivers.base import (
     MAX_JOINT_ACCELERATION,
     MAX_JOINT_SPEED,
@@ -35,6 +35,7 @@ from drivers.base import (
     Arm,
     ArmState,
     ArmStatus,
+    trapezoid_duration,
 )
 from drivers.clock import Clock, RealClock, SimClock
 from drivers.mock.faults import FAULT_FRACTION, Fault, FaultPlan
@@ -54,16 +55,6 @@ LINEAR_ROTATION_SPEED = 0.5  # rad/s
 LINEAR_ROTATION_ACCELERATION = 1.0  # rad/s^2
 # A joint jump larger than this between neighbouring path samples is an IK branch flip.
 MAX_SAMPLE_JUMP_RAD = 0.2
-
-
-def trapezoid_duration(distance: float, speed: float, acceleration: float) -> float:
-    """Duration (s) of a rest-to-rest trapezoidal move: ``d/v + v/a`` when the cruise speed is
-    reached (``d >= v^2/a``), else the triangular ``2 sqrt(d/a)``."""
-    if distance <= 0:
-        return 0.0
-    if distance >= speed * speed / acceleration:
-        return distance / speed + speed / acceleration
-    return 2.0 * math.sqrt(distance / acceleration)
 
 
 def trapezoid_time_at(s: np.ndarray, distance: float, speed: float,
@@ -234,11 +225,9 @@ class MockArm(Arm):
         qs = np.empty((len(sigma), 6))
         qs[0] = self._q
         for k in range(1, len(sigma)):
-            T = np.eye(4)
-            T[:3, :3] = start[:3, :3] @ rotvec_to_matrix(sigma[k] * rotvec)
-            T[:3, 3] = start[:3, 3] + sigma[k] * (target[:3, 3] - start[:3, 3])
-            if k == len(sigma) - 1:
-                T = target
+            T = target if k == len(sigma) - 1 else make_T(
+                start[:3, :3] @ rotvec_to_matrix(sigma[k] * rotvec),
+                start[:3, 3] + sigma[k] * (target[:3, 3] - start[:3, 3]))
             try:
                 qs[k] = self.model.ik(T, qs[k - 1])
             except IKError as err:
