@@ -20,6 +20,7 @@ from armstereo.accuracy import DepthAccuracy, score_depth, visible_mask
 from armstereo.capture import CaptureSettings, plan_capture
 from armstereo.capture.backends import build_arm, build_camera
 from armstereo.capture.plan import validate_settings
+from armstereo.capture.run import model_metadata
 from armstereo.cli.capture_cmd import capture_to_file
 from armstereo.errors import RecordingError
 from armstereo.kinematics import ArmModel
@@ -76,9 +77,7 @@ def run_demo(out_dir: Path, options: DemoOptions = DemoOptions(),
                               scene=default_table_scene(options.seed))
         with camera:
             capture_to_file(arm, camera, model, plan, out_dir / "demo.mcap",
-                            {"armstereo_version": __version__, "robot": model.name,
-                             "urdf_sha256": model.urdf_sha256, "mount": model.mount.name,
-                             "mount_toml": model.mount.source, "arm": "mock",
+                            {**model_metadata(model), "arm": "mock",
                              "camera": "mock", "baseline_m": repr(options.baseline),
                              "direction": "x", "pairs": "1", "source": "armstereo demo"},
                             progress=None)

@@ -22,6 +22,16 @@ log = logging.getLogger(__name__)
 MOVE_TIMEOUT_MARGIN_S = 10.0  # on top of the planned duration of a move
 
 
+def model_metadata(model: ArmModel) -> dict[str, str]:
+    """The recording metadata that identifies the software, arm model and camera mount: what
+    every capture (CLI, demo, sweep) records so a replay can rebuild the same kinematics."""
+    from armstereo import __version__
+
+    return {"armstereo_version": __version__, "robot": model.name,
+            "urdf_sha256": model.urdf_sha256, "mount": model.mount.name,
+            "mount_toml": model.mount.source}
+
+
 @dataclass
 class PairResult:
     """Commanded and achieved camera baseline of one pair (m)."""

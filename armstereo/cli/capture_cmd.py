@@ -9,11 +9,10 @@ import signal
 import sys
 from pathlib import Path
 
-from armstereo import __version__
 from armstereo.capture import CaptureSettings, Workspace, plan_capture, run_capture
 from armstereo.capture.backends import ARM_KINDS, build_arm, build_camera
 from armstereo.capture.plan import parse_direction
-from armstereo.capture.run import CaptureResult
+from armstereo.capture.run import CaptureResult, model_metadata
 from armstereo.errors import ArmstereoError, ConfigError, UserAbort
 from armstereo.kinematics import MODEL_NAMES, ArmModel
 from armstereo.mount import CameraMount
@@ -161,11 +160,8 @@ def _check_camera(camera, model: ArmModel) -> None:
 
 
 def _metadata(args: argparse.Namespace, model: ArmModel) -> dict[str, str]:
-    m = model.mount
     return {
-        "armstereo_version": __version__, "robot": model.name,
-        "urdf_sha256": model.urdf_sha256, "mount": m.name, "mount_toml": m.source,
-        "arm": args.arm, "host": args.host or "", "camera": args.camera,
+        **model_metadata(model), "arm": args.arm, "host": args.host or "", "camera": args.camera,
         "baseline_m": repr(args.baseline), "direction": args.direction,
         "pairs": str(args.pairs), "speed_m_s": repr(args.speed),
         "acceleration_m_s2": repr(args.acceleration), "settle_s": repr(args.settle),

@@ -9,9 +9,9 @@ from pathlib import Path
 
 import numpy as np
 
-from armstereo import __version__
 from armstereo.capture import CaptureSettings, plan_capture
 from armstereo.capture.backends import build_arm, build_camera, sweep_start_configuration
+from armstereo.capture.run import model_metadata
 from armstereo.cli.capture_cmd import _confirm_motion, add_backend_args, capture_to_file
 from armstereo.errors import ConfigError
 from armstereo.kinematics import ArmModel
@@ -149,7 +149,5 @@ def _live_capture(args, model: ArmModel, out: Path):
 
 
 def _meta(args, model: ArmModel, b: float) -> dict[str, str]:
-    return {"armstereo_version": __version__, "robot": model.name,
-            "urdf_sha256": model.urdf_sha256, "mount": model.mount.name,
-            "mount_toml": model.mount.source, "arm": args.arm, "camera": args.camera,
+    return {**model_metadata(model), "arm": args.arm, "camera": args.camera,
             "baseline_m": repr(b), "direction": "x", "pairs": "1", "source": "armstereo sweep"}
