@@ -2,7 +2,7 @@
 
 Everything runs on the embedded mock backends (simulated clock), so it needs no hardware. The
 report's accuracy is measured on the left view's pixels that have ground truth and are seen by
-the right view too (see :mod:`armstereo.accuracy`).
+the right view too (see :mod:`armstereo.evaluation.depth`).
 """
 
 from __future__ import annotations
@@ -16,13 +16,13 @@ from pathlib import Path
 import numpy as np
 
 from armstereo import __version__
-from armstereo.accuracy import DepthAccuracy, score_depth, visible_mask
 from armstereo.capture import CaptureSettings, plan_capture
 from armstereo.capture.backends import build_arm, build_camera
 from armstereo.capture.plan import validate_settings
 from armstereo.capture.run import model_metadata
 from armstereo.cli.capture_cmd import capture_to_file
 from armstereo.errors import RecordingError
+from armstereo.evaluation.depth import DepthAccuracy, score_depth, visible_mask
 from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
 from armstereo.pipeline import reconstruct_pair, write_reconstruction_mcap

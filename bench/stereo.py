@@ -33,7 +33,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from armstereo.disparity_io import read_disparity  # noqa: E402
-from armstereo.evaluation import evaluate_disparity  # noqa: E402
+from armstereo.evaluation.disparity import evaluate_disparity  # noqa: E402
 from armstereo.stereo import compute_disparity  # noqa: E402
 
 MIDDLEBURY = ROOT / "tests" / "data" / "middlebury"

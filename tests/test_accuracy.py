@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from armstereo.accuracy import score_depth, visible_mask
 from armstereo.camera_model import Intrinsics
 from armstereo.errors import StereoError
+from armstereo.evaluation.depth import score_depth, visible_mask
 from armstereo.transforms import make_T
 
 INTR = Intrinsics(64, 48, np.array([[50.0, 0, 31.5], [0, 50.0, 23.5], [0, 0, 1]]))

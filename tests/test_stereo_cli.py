@@ -14,7 +14,7 @@ import pytest
 
 from armstereo.cli.main import main
 from armstereo.disparity_io import read_disparity, write_disparity
-from armstereo.evaluation import evaluate_disparity
+from armstereo.evaluation.disparity import evaluate_disparity
 from armstereo.stereo import birchfield
 
 TSUKUBA = Path(__file__).parent / "data" / "middlebury" / "tsukuba"

@@ -14,7 +14,7 @@ import pytest
 
 from armstereo.disparity_io import read_disparity
 from armstereo.errors import StereoError
-from armstereo.evaluation import evaluate_disparity
+from armstereo.evaluation.disparity import evaluate_disparity
 from armstereo.stereo import birchfield, compute_disparity, sgbm
 
 MIDDLEBURY = Path(__file__).parent / "data" / "middlebury"

@@ -28,6 +28,7 @@ import numpy as np
 
 from armstereo.camera_model import Intrinsics
 from armstereo.errors import ConfigError
+from armstereo.evaluation.scene_truth import SceneTruth, TruthPrimitive
 from armstereo.transforms import invert, make_T, rot_z
 
 # Centre of the default table scene, base-frame (x, y) in metres. At their ready configuration
@@ -157,6 +158,15 @@ class Primitive(ABC):
         c = self._corners_local()
         return c @ self.T_base_local[:3, :3].T + self.T_base_local[:3, 3]
 
+    @abstractmethod
+    def _truth_dims(self) -> tuple[str, tuple[float, ...]]:
+        """(kind, dims) as :mod:`armstereo.evaluation.scene_truth` describes them."""
+
+    def truth(self) -> TruthPrimitive:
+        """This primitive's exact geometry, for scoring reconstructions against it."""
+        kind, dims = self._truth_dims()
+        return TruthPrimitive(self.name, kind, self.T_base_local.copy(), dims)
+
 
 def _miss_where(t: np.ndarray, bad: np.ndarray) -> np.ndarray:
     return np.where(bad | ~(t > T_MIN), np.inf, t)
@@ -186,6 +196,9 @@ class Rectangle(Primitive):
 
     def normals(self, points_base: np.ndarray) -> np.ndarray:
         return self.T_base_local[:3, 2:3].astype(np.asarray(points_base).dtype)
+
+    def _truth_dims(self):
+        return "rectangle", (self.half_x, self.half_y)
 
     def _corners_local(self):
         hx, hy = self.half_x, self.half_y
@@ -223,6 +236,9 @@ class Box(Primitive):
         cols = np.arange(p.shape[1])
         n[k, cols] = np.sign(p[k, cols])
         return n
+
+    def _truth_dims(self):
+        return "box", tuple(float(v) for v in 2 * self.half)
 
     def _corners_local(self):
         s = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], dtype=float)
@@ -268,6 +284,9 @@ class Cylinder(Primitive):
         return np.stack([np.where(side, p[0] / safe, 0.0), np.where(side, p[1] / safe, 0.0),
                          np.where(side, 0.0, np.where(d_top <= d_bottom, 1.0, -1.0))])
 
+    def _truth_dims(self):
+        return "cylinder", (self.radius, self.height)
+
     def _corners_local(self):
         r, h = self.radius, self.height
         return np.array([[i * r, j * r, k] for i in (-1, 1) for j in (-1, 1) for k in (0, h)],
@@ -296,6 +315,9 @@ class Sphere(Primitive):
 
     def _normal_local(self, p):
         return p / np.linalg.norm(p, axis=0, keepdims=True)
+
+    def _truth_dims(self):
+        return "sphere", (self.radius,)
 
     def _corners_local(self):
         r = self.radius
@@ -386,7 +408,8 @@ class Scene:
 
     def __init__(self, primitives: Sequence[Primitive], *,
                  light_dir: Sequence[float] = DEFAULT_LIGHT, ambient: float = DEFAULT_AMBIENT,
-                 background_bgr: Sequence[float] = (0.0, 0.0, 0.0)):
+                 background_bgr: Sequence[float] = (0.0, 0.0, 0.0),
+                 support: str | None = None):
         if not primitives:
             raise ConfigError("a scene needs at least one primitive")
         if not 0.0 <= ambient <= 1.0:
@@ -396,6 +419,11 @@ class Scene:
         self.light_dir = light / np.linalg.norm(light)
         self.ambient = float(ambient)
         self.background = np.asarray(background_bgr, dtype=np.float32).reshape(3)
+        self.support = support  # name of the primitive objects stand on (the table top)
+
+    def truth(self) -> SceneTruth:
+        """The exact geometry of every primitive, for scoring reconstructions (base frame)."""
+        return SceneTruth([p.truth() for p in self.primitives], self.support)
 
     def intersect(self, origin: np.ndarray, directions: np.ndarray):
         """First hits of rays ``origin + t * directions[i]`` (base frame, float64).
@@ -634,7 +662,7 @@ def default_table_scene(seed: int = 0, *, floor: bool = True) -> Scene:
         prims.append(Rectangle(make_T(np.eye(3), (cx, cy, FLOOR_Z)), 3.0, 3.0,
                                _texture((50, 50, 50), (125, 125, 125), seed * 1000 + 99, 3.0),
                                name="floor"))
-    return Scene(prims)
+    return Scene(prims, support="table")
 
 
 @dataclass(frozen=True)

@@ -18,11 +18,11 @@ import logging
 import sys
 
 import numpy as np
-
-from armstereo.kinematics import ArmModel, ready_configuration
 from rtde_emulator.controller import Controller
 from rtde_emulator.faults import MoveFault, Settings
 from rtde_emulator.servers import start_servers
+
+from armstereo.kinematics import ArmModel, ready_configuration
 
 DEFAULT_VERSION = "5.12.0.1101534"  # e-Series: 500 Hz, serial number and remote-control check
 
