@@ -21,12 +21,12 @@ from pathlib import Path
 
 import numpy as np
 
+from armstereo.devices import Frame
+from armstereo.io.ply import write_ply
 from armstereo.mount import CameraMount
-from armstereo.pipeline import reconstruct_pair, write_outputs
-from armstereo.ply import write_ply
+from armstereo.reconstruct.pipeline import reconstruct_pair, write_outputs
 from armstereo.recording import Recording, RecordingWriter
 from armstereo.transforms import invert, make_T, rot_x, rot_z
-from drivers.base import Frame
 from drivers.mock.scene import SCENE_CENTER, default_table_scene
 
 STAGES = ("decode", "rectify", "match", "triangulate", "write")

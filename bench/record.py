@@ -24,11 +24,11 @@ import numpy as np
 from mcap.writer import CompressionType
 
 from armstereo.camera_model import Intrinsics
+from armstereo.devices import Frame
 from armstereo.kinematics import JOINT_NAMES
 from armstereo.recording import RecordingWriter
 from armstereo.recording.writer import JPEG_QUALITY, PNG_PARAMS
 from armstereo.transforms import make_T, rot_x
-from drivers.base import Frame
 
 WIDTH, HEIGHT = 640, 480
 

@@ -32,9 +32,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from armstereo.disparity_io import read_disparity  # noqa: E402
 from armstereo.evaluation.disparity import evaluate_disparity  # noqa: E402
-from armstereo.stereo import compute_disparity  # noqa: E402
+from armstereo.io.disparity import read_disparity  # noqa: E402
+from armstereo.reconstruct.stereo import compute_disparity  # noqa: E402
 
 MIDDLEBURY = ROOT / "tests" / "data" / "middlebury"
 RESULTS = ROOT / "bench" / "results" / "stereo.md"

@@ -45,7 +45,7 @@ def probe() -> dict:
     import numba
     import numpy as np
 
-    from armstereo.stereo import birchfield
+    from armstereo.reconstruct.stereo import birchfield
 
     rng = np.random.default_rng(0)
     scene = cv2.GaussianBlur((rng.random((480, 660, 3)) * 255).astype(np.uint8), (0, 0), 1.2)

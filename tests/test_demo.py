@@ -8,10 +8,10 @@ import cv2
 import numpy as np
 import pytest
 
+from armstereo.apps.demo import score_reconstruction
 from armstereo.cli.main import main
-from armstereo.demo import score_reconstruction
-from armstereo.pipeline import reconstruct_pair
-from armstereo.ply import read_ply
+from armstereo.io.ply import read_ply
+from armstereo.reconstruct.pipeline import reconstruct_pair
 from armstereo.recording import Recording
 
 

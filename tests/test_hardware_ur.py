@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from drivers.base import ArmState
+from armstereo.devices import ArmState
 
 pytestmark = pytest.mark.hardware
 

@@ -7,6 +7,8 @@ import time
 import numpy as np
 import pytest
 
+from armstereo.clock import RealClock, SimClock
+from armstereo.devices import MAX_JOINT_SPEED, MAX_LINEAR_SPEED, ArmState
 from armstereo.errors import (
     ConfigError,
     ConnectionLost,
@@ -18,8 +20,6 @@ from armstereo.errors import (
 )
 from armstereo.kinematics import ArmModel, ready_configuration
 from armstereo.transforms import invert, matrix_to_rotvec
-from drivers.base import MAX_JOINT_SPEED, MAX_LINEAR_SPEED, ArmState
-from drivers.clock import RealClock, SimClock
 from drivers.mock.arm import MockArm, trapezoid_duration, trapezoid_time_at
 from drivers.mock.faults import FaultPlan
 

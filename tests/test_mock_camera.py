@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from armstereo.camera_model import Intrinsics
+from armstereo.clock import SimClock
 from armstereo.errors import CameraTimeout, ConfigError, HardwareError
 from armstereo.transforms import make_T
-from drivers.clock import SimClock
 from drivers.mock.camera import MockCamera
 from drivers.mock.faults import FaultPlan
 from drivers.mock.scene import SCENE_CENTER, default_table_scene

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from armstereo.camera_model import Intrinsics
+from armstereo.clock import SimClock
 from armstereo.errors import CameraTimeout, ConfigError, ConnectionFailed, HardwareError
-from drivers.clock import SimClock
 from drivers.opencv import camera as camera_module
 from drivers.opencv.camera import OpenCVCamera
 

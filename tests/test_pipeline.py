@@ -11,15 +11,15 @@ import pytest
 
 from armstereo.camera_model import Intrinsics
 from armstereo.cli.main import main
+from armstereo.devices import Frame
 from armstereo.errors import ConfigError, RecordingError
+from armstereo.io.images import depth_from_png16
+from armstereo.io.ply import read_ply
 from armstereo.mount import CameraMount
-from armstereo.pipeline import plan_disparity, reconstruct_pair, write_outputs
-from armstereo.ply import read_ply
+from armstereo.reconstruct.pipeline import plan_disparity, reconstruct_pair, write_outputs
+from armstereo.reconstruct.rectify import rectified_geometry
 from armstereo.recording import Recording, RecordingWriter
-from armstereo.rectify import rectified_geometry
 from armstereo.transforms import invert, make_T, rot_x, rot_z
-from armstereo.visualize import depth_from_png16
-from drivers.base import Frame
 
 MOUNT = CameraMount.load()
 INTR = MOUNT.intrinsics

@@ -4,7 +4,7 @@ import json
 
 import pytest
 
-from armstereo.baseline import depth_error, overlap, plan_baseline
+from armstereo.apps.baseline import depth_error, overlap, plan_baseline
 from armstereo.cli.main import main
 from armstereo.errors import ConfigError
 

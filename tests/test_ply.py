@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from armstereo.errors import StereoError
-from armstereo.ply import VERTEX_DTYPE, encode_ply, read_ply, write_ply
+from armstereo.io.ply import VERTEX_DTYPE, encode_ply, read_ply, write_ply
 
 HEADER = (b"ply\nformat binary_little_endian 1.0\ncomment frame base\nelement vertex 3\n"
           b"property float x\nproperty float y\nproperty float z\nproperty uchar red\n"

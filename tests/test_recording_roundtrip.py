@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 
 from armstereo.camera_model import Intrinsics
+from armstereo.devices import Frame
 from armstereo.errors import ConfigError, RecordingError
 from armstereo.kinematics import JOINT_NAMES as JOINTS
 from armstereo.recording import Recording, RecordingWriter
 from armstereo.recording import schemas as S
 from armstereo.recording.writer import _signals_deferred
 from armstereo.transforms import make_T, rot_x, rot_y, rot_z
-from drivers.base import Frame
 
 T0_NS = 1_700_000_000_123_456_789  # realistic epoch nanoseconds: needs all 64 bits of care
 BASELINE = 0.05

@@ -10,7 +10,7 @@ import pytest
 
 from armstereo.camera_model import Intrinsics
 from armstereo.errors import StereoError
-from armstereo.rectify import (
+from armstereo.reconstruct.rectify import (
     factor_projection,
     fusiello,
     rectified_geometry,

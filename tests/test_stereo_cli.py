@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 from armstereo.cli.main import main
-from armstereo.disparity_io import read_disparity, write_disparity
 from armstereo.evaluation.disparity import evaluate_disparity
-from armstereo.stereo import birchfield
+from armstereo.io.disparity import read_disparity, write_disparity
+from armstereo.reconstruct.stereo import birchfield
 
 TSUKUBA = Path(__file__).parent / "data" / "middlebury" / "tsukuba"
 D0 = 6

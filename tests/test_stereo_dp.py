@@ -10,8 +10,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from armstereo.bt.cost import INF, dissimilarity_table, row_bounds, variation_flags
-from armstereo.bt.dp import (
+from armstereo.reconstruct.birchfield.cost import (
+    INF,
+    dissimilarity_table,
+    row_bounds,
+    variation_flags,
+)
+from armstereo.reconstruct.birchfield.dp_exact import scanline_dp_exact
+from armstereo.reconstruct.birchfield.dp_pruned import (
     BORDER,
     C0,
     MATCHED,
@@ -20,7 +26,6 @@ from armstereo.bt.dp import (
     decode_matches,
     scanline_dp,
 )
-from armstereo.bt.dp_fast import scanline_dp_exact
 
 OCC, REW = 50, 10  # doubled units: the paper's 25 and 5
 

@@ -1,4 +1,4 @@
-"""The public matcher ``armstereo.stereo.birchfield`` on scenes with known answers
+"""The public matcher ``armstereo.reconstruct.stereo.birchfield`` on scenes with known answers
 (algorithms.md §6.2.2-4, 7), its input checks, and a sanity bound on a Middlebury pair."""
 
 from __future__ import annotations
@@ -12,10 +12,10 @@ import cv2
 import numpy as np
 import pytest
 
-from armstereo.disparity_io import read_disparity
 from armstereo.errors import StereoError
 from armstereo.evaluation.disparity import evaluate_disparity
-from armstereo.stereo import birchfield, compute_disparity, sgbm
+from armstereo.io.disparity import read_disparity
+from armstereo.reconstruct.stereo import birchfield, compute_disparity, sgbm
 
 MIDDLEBURY = Path(__file__).parent / "data" / "middlebury"
 # Measured 4.51 % (bench/results/stereo.md); the bound leaves room for tie-breaking changes,
@@ -152,7 +152,7 @@ def test_no_worker_threads_left_running():
     process, so that no earlier call has started such workers already."""
     code = (
         "import os, numpy as np\n"
-        "from armstereo.stereo import birchfield\n"
+        "from armstereo.reconstruct.stereo import birchfield\n"
         "img = np.random.default_rng(0).integers(0, 255, (40, 80), dtype=np.uint8)\n"
         "before = len(os.listdir('/proc/self/task'))\n"
         "birchfield(img, img, 8, threads=2)\n"

@@ -7,9 +7,9 @@ import csv
 import numpy as np
 import pytest
 
+from armstereo.apps.sweep import Measurement, Target, best_baseline, measure_targets
 from armstereo.cli.main import main
 from armstereo.errors import ConfigError
-from armstereo.sweep import Measurement, Target, best_baseline, measure_targets
 
 
 def test_sweep_on_the_mock_shows_the_expected_shape(tmp_path, capsys):

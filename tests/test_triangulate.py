@@ -9,15 +9,15 @@ import numpy as np
 import pytest
 
 from armstereo.errors import StereoError
-from armstereo.rectify import RectifiedPair, StereoGeometry, rectify_pair
-from armstereo.transforms import invert, make_T, rot_x, rot_y, rot_z, transform_points
-from armstereo.triangulate import (
+from armstereo.reconstruct.rectify import RectifiedPair, StereoGeometry, rectify_pair
+from armstereo.reconstruct.triangulate import (
     depth_from_disparity,
     depth_in_original_view,
     point_cloud,
     points_in_camera,
     points_rect,
 )
+from armstereo.transforms import invert, make_T, rot_x, rot_y, rot_z, transform_points
 
 K = np.array([[610.0, 0, 322.0], [0, 600.0, 236.0], [0, 0, 1]])
 DIST = np.array([-0.12, 0.05, 0.001, -0.0005, 0.0])

@@ -16,6 +16,8 @@ import types
 import numpy as np
 import pytest
 
+from armstereo.clock import SimClock
+from armstereo.devices import MAX_JOINT_SPEED, MAX_LINEAR_ACCELERATION, MAX_LINEAR_SPEED, ArmState
 from armstereo.errors import (
     ConfigError,
     ConnectionFailed,
@@ -27,8 +29,6 @@ from armstereo.errors import (
     ProtectiveStop,
 )
 from armstereo.transforms import make_T, rot_x, rot_y, rot_z, ur_pose_from_T
-from drivers.base import MAX_JOINT_SPEED, MAX_LINEAR_ACCELERATION, MAX_LINEAR_SPEED, ArmState
-from drivers.clock import SimClock
 from drivers.ur import arm as arm_module
 from drivers.ur import probe
 from drivers.ur.arm import RECEIVE_VARIABLES, URArm

@@ -22,6 +22,7 @@ from rtde_emulator.harness import EmulatedController, free_loopback_address
 from armstereo.capture.backends import mock_start_configuration
 from armstereo.cli import capture_cmd
 from armstereo.cli.main import main
+from armstereo.devices import ArmState
 from armstereo.errors import (
     ConnectionFailed,
     ConnectionLost,
@@ -30,7 +31,6 @@ from armstereo.errors import (
 )
 from armstereo.kinematics import ArmModel
 from armstereo.recording import Recording
-from drivers.base import ArmState
 from drivers.ur.arm import URArm
 from drivers.ur.channel import ControlChannel
 from drivers.ur.probe import rtde_handshake

@@ -7,9 +7,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from armstereo.devices import Arm, Camera
 from armstereo.errors import ConfigError, IKError
 from armstereo.kinematics import ArmModel, ready_configuration
-from drivers.base import Arm, Camera
 
 ARM_KINDS = ("mock", "ur")
 MOCK_CAMERA_HEIGHT_M = 0.55  # camera above the table (z = 0 in base) at the mock start pose

@@ -14,9 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from armstereo.errors import ConfigError, IKError, JointLimitError, PreflightError
-from armstereo.kinematics import ArmModel
-from drivers.base import (
+from armstereo.devices import (
     MAX_JOINT_ACCELERATION,
     MAX_JOINT_SPEED,
     MAX_LINEAR_ACCELERATION,
@@ -24,6 +22,8 @@ from drivers.base import (
     MotionLimits,
     trapezoid_duration,
 )
+from armstereo.errors import ConfigError, IKError, JointLimitError, PreflightError
+from armstereo.kinematics import ArmModel
 
 NAMED_DIRECTIONS = {
     "x": (1.0, 0.0, 0.0), "-x": (-1.0, 0.0, 0.0),

@@ -14,8 +14,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from armstereo.capture.plan import CapturePlan
+from armstereo.devices import Arm, Camera
 from armstereo.kinematics import ArmModel
-from drivers.base import Arm, Camera
 
 log = logging.getLogger(__name__)
 

@@ -13,10 +13,10 @@ from armstereo.capture import CaptureSettings, Workspace, plan_capture, run_capt
 from armstereo.capture.backends import ARM_KINDS, build_arm, build_camera
 from armstereo.capture.plan import parse_direction
 from armstereo.capture.run import CaptureResult, model_metadata
+from armstereo.devices import MotionLimits
 from armstereo.errors import ArmstereoError, ConfigError, UserAbort
 from armstereo.kinematics import MODEL_NAMES, ArmModel
 from armstereo.mount import CameraMount
-from drivers.base import MotionLimits
 
 log = logging.getLogger("armstereo.capture")
 

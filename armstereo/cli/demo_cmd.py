@@ -7,7 +7,7 @@ import sys
 import time
 from pathlib import Path
 
-from armstereo.demo import DEFAULT_BASELINE_M, DEMO_FILES, DemoOptions, demo_settings, run_demo
+from armstereo.apps.demo import DEFAULT_BASELINE_M, DEMO_FILES, DemoOptions, demo_settings, run_demo
 from armstereo.errors import ConfigError
 
 TARGET_MEDIAN_REL_ERROR = 0.005

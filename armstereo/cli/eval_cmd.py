@@ -9,9 +9,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from armstereo.disparity_io import read_disparity
 from armstereo.errors import ConfigError
 from armstereo.evaluation.disparity import evaluate_disparity
+from armstereo.io.disparity import read_disparity
 
 MASK_THRESHOLD = 128  # Middlebury masks: 255 scored, 128 occluded, 0 unknown
 META_FILE = "meta.json"  # tests/data/middlebury layout: {"gt": file name, "gt_scale": s}

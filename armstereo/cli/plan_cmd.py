@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from armstereo.baseline import plan_baseline
+from armstereo.apps.baseline import plan_baseline
 from armstereo.mount import CameraMount
 
 

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from armstereo.errors import ConfigError, RecordingError, StereoError
-from armstereo.pipeline import METHODS, reconstruct_pair, write_outputs
+from armstereo.reconstruct.pipeline import METHODS, reconstruct_pair, write_outputs
 from armstereo.recording import Recording
 
 

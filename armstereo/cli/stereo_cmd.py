@@ -10,16 +10,16 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from armstereo.disparity_io import DISPARITY_SUFFIXES, write_disparity
 from armstereo.errors import ConfigError
-from armstereo.stereo import (
+from armstereo.io.disparity import DISPARITY_SUFFIXES, write_disparity
+from armstereo.io.images import colorize_disparity, write_png
+from armstereo.reconstruct.stereo import (
     COLOR_MODES,
     METHODS,
     OCCLUSION_MODES,
     SUBPIXEL_MODES,
     compute_disparity,
 )
-from armstereo.visualize import colorize_disparity, write_png
 
 log = logging.getLogger(__name__)
 

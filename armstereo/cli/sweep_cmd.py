@@ -9,17 +9,17 @@ from pathlib import Path
 
 import numpy as np
 
+from armstereo.apps.sweep import Target, best_baseline, format_table, plot, run_sweep, write_csv
 from armstereo.capture import CaptureSettings, plan_capture
 from armstereo.capture.backends import build_arm, build_camera, sweep_start_configuration
 from armstereo.capture.run import model_metadata
 from armstereo.cli.capture_cmd import _confirm_motion, add_backend_args, capture_to_file
+from armstereo.devices import MotionLimits
 from armstereo.errors import ConfigError
 from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
-from armstereo.pipeline import reconstruct_pair
+from armstereo.reconstruct.pipeline import reconstruct_pair
 from armstereo.recording import Recording
-from armstereo.sweep import Target, best_baseline, format_table, plot, run_sweep, write_csv
-from drivers.base import MotionLimits
 
 DEFAULT_BASELINES = "0.025,0.05,0.075,0.1,0.15,0.2,0.3"
 DEFAULT_DISTANCES = "0.8,1.1,1.4,1.7,2.0,2.2"

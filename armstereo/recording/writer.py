@@ -38,10 +38,10 @@ from mcap_protobuf.schema import register_schema
 
 from armstereo import __version__
 from armstereo.camera_model import Intrinsics
+from armstereo.devices import Frame
 from armstereo.errors import ConfigError, RecordingError
 from armstereo.recording import schemas as S
 from armstereo.transforms import quaternion_xyzw
-from drivers.base import Frame
 
 log = logging.getLogger(__name__)
 

@@ -18,16 +18,8 @@ from typing import TYPE_CHECKING, NoReturn
 
 import numpy as np
 
-from armstereo.errors import (
-    ConfigError,
-    ConnectionLost,
-    HardwareError,
-    IKError,
-    MotionTimeout,
-    ProtectiveStop,
-)
-from armstereo.transforms import make_T, matrix_to_rotvec, rotvec_to_matrix
-from drivers.base import (
+from armstereo.clock import Clock, RealClock, SimClock
+from armstereo.devices import (
     MAX_JOINT_ACCELERATION,
     MAX_JOINT_SPEED,
     MAX_LINEAR_ACCELERATION,
@@ -37,7 +29,15 @@ from drivers.base import (
     ArmStatus,
     trapezoid_duration,
 )
-from drivers.clock import Clock, RealClock, SimClock
+from armstereo.errors import (
+    ConfigError,
+    ConnectionLost,
+    HardwareError,
+    IKError,
+    MotionTimeout,
+    ProtectiveStop,
+)
+from armstereo.transforms import make_T, matrix_to_rotvec, rotvec_to_matrix
 from drivers.mock.faults import FAULT_FRACTION, Fault, FaultPlan
 
 if TYPE_CHECKING:
@@ -72,7 +72,7 @@ def trapezoid_time_at(s: np.ndarray, distance: float, speed: float,
 
 
 class MockArm(Arm):
-    """Simulated 6-joint UR arm implementing :class:`drivers.base.Arm`.
+    """Simulated 6-joint UR arm implementing :class:`armstereo.devices.Arm`.
 
     ``q0`` defaults to the model's ready configuration. ``joint_noise`` (rad, Gaussian, seeded
     by ``seed``) perturbs the joints reached at the end of each move. ``faults`` injects

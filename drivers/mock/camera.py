@@ -15,9 +15,9 @@ from collections.abc import Callable
 import numpy as np
 
 from armstereo.camera_model import Intrinsics
+from armstereo.clock import Clock, SimClock
+from armstereo.devices import Camera, Frame
 from armstereo.errors import CameraTimeout, ConfigError, HardwareError
-from drivers.base import Camera, Frame
-from drivers.clock import Clock, SimClock
 from drivers.mock.faults import FaultPlan
 from drivers.mock.scene import Scene, default_table_scene
 

@@ -25,9 +25,9 @@ import cv2
 import numpy as np
 
 from armstereo.camera_model import Intrinsics
+from armstereo.clock import Clock, RealClock
+from armstereo.devices import Camera, Frame
 from armstereo.errors import CameraTimeout, ConfigError, ConnectionFailed, HardwareError
-from drivers.base import Camera, Frame
-from drivers.clock import Clock, RealClock
 
 log = logging.getLogger(__name__)
 

@@ -27,6 +27,16 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
+from armstereo.clock import Clock, RealClock
+from armstereo.devices import (
+    MAX_JOINT_ACCELERATION,
+    MAX_JOINT_SPEED,
+    MAX_LINEAR_ACCELERATION,
+    MAX_LINEAR_SPEED,
+    Arm,
+    ArmState,
+    ArmStatus,
+)
 from armstereo.errors import (
     ArmstereoError,
     ConfigError,
@@ -38,16 +48,6 @@ from armstereo.errors import (
     ProtectiveStop,
 )
 from armstereo.transforms import T_from_ur_pose, matrix_to_rotvec, ur_pose_from_T
-from drivers.base import (
-    MAX_JOINT_ACCELERATION,
-    MAX_JOINT_SPEED,
-    MAX_LINEAR_ACCELERATION,
-    MAX_LINEAR_SPEED,
-    Arm,
-    ArmState,
-    ArmStatus,
-)
-from drivers.clock import Clock, RealClock
 from drivers.ur.channel import ControlChannel
 from drivers.ur.diagnose import connection_failed
 from drivers.ur.probe import DASHBOARD_PORT, ControllerInfo, check_controller, check_port

@@ -18,15 +18,15 @@ import numba
 import numpy as np
 from numba import njit
 
-from armstereo.bt.cost import (
+from armstereo.reconstruct.birchfield.cost import (
     INF,
     VARIATION_THRESHOLD,
     dissimilarity_table,
     interval_bounds,
     variation_flags,
 )
-from armstereo.bt.dp import BORDER, INVALID, decode_matches, scanline_dp
-from armstereo.bt.dp_fast import scanline_dp_exact
+from armstereo.reconstruct.birchfield.dp_exact import scanline_dp_exact
+from armstereo.reconstruct.birchfield.dp_pruned import BORDER, INVALID, decode_matches, scanline_dp
 
 DP_EXACT = 0  # exact O(n nd) programme (default)
 DP_PRUNED = 1  # reference code's pruned search

@@ -1,9 +1,13 @@
-"""Numba kernels of the Birchfield-Tomasi matcher; the public API is :mod:`armstereo.stereo`.
+"""Numba kernels of the Birchfield-Tomasi matcher; the public API is
+:mod:`armstereo.reconstruct.stereo`.
 
 Modules, in the order the matcher uses them:
 
 - :mod:`.cost`: the sampling-insensitive dissimilarity and the intensity-variation flags;
-- :mod:`.dp`: the scanline dynamic programme over match sequences and its decoding;
+- :mod:`.dp_exact`: the scanline dynamic programme over match sequences, solved exactly (the
+  default);
+- :mod:`.dp_pruned`: the reference code's pruned search of the same programme, its decoding and
+  the constants both solvers share;
 - :mod:`.matcher`: all rows of an image pair (on threads), masks and disparity window;
 - :mod:`.postprocess`: the paper's propagation across scanlines and mode filters;
 - :mod:`.refine`: options beyond the paper (subpixel, left-right check).

@@ -1,7 +1,7 @@
-"""The exact optimum of the scanline programme of :mod:`.dp` in O(ny nd), vectorised.
+"""The exact optimum of the scanline programme of :mod:`.dp_pruned` in O(ny nd), vectorised.
 
-Same model (nodes, steps, costs, start and end) as :func:`armstereo.bt.dp.scanline_dp`; no
-pruning is needed because every step kind is a running minimum:
+Same model (nodes, steps, costs, start and end) as :func:`.dp_pruned.scanline_dp`; no pruning
+is needed because every step kind is a running minimum:
 
 - row ``y + 1`` is pulled from row ``y``: ``phi(y+1, k) = d(y+1, k) - reward + min(
   phi(y, k), P(k) + pen_l, R(y + k))``;
@@ -29,8 +29,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from armstereo.bt.cost import INF, channel_costs
-from armstereo.bt.dp import C0, NO_VARIATION_PENALTY
+from armstereo.reconstruct.birchfield.cost import INF, channel_costs
+from armstereo.reconstruct.birchfield.dp_pruned import C0, NO_VARIATION_PENALTY
 
 VALID_BELOW = INF // 2  # real path costs stay far below this; sums involving INF stay above
 EXACT_BELOW = 1 << 24  # float32 holds every integer below this exactly
@@ -93,7 +93,7 @@ def scanline_dp_exact(lv, lmin, lmax, rv, rmin, rmax, x_lo, combine_max, gl, gr,
     """Best match sequence of one scanline; returns its cost (``INF`` if there is none).
 
     ``lv, lmin, lmax`` (C, nx) and ``rv, rmin, rmax`` (C, ny): doubled interval bounds of the
-    left/right pixels (:func:`armstereo.bt.cost.interval_bounds`); left pixels below ``x_lo``
+    left/right pixels (:func:`.cost.interval_bounds`); left pixels below ``x_lo``
     take no part. ``gl``/``gr``: intensity-variation flags; ``occ``/``rew``: doubled occlusion
     penalty and match reward; ``phi``: (ny, nd) float32 work array (see the module doc).
     Output ``match[x]`` = right pixel matched to left pixel ``x``, or -1.

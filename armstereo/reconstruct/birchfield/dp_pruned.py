@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from armstereo.bt.cost import INF
+from armstereo.reconstruct.birchfield.cost import INF
 
 C0 = 600  # reference code's start offset; keeps costs positive, does not change the optimum
 NO_VARIATION_PENALTY = 1000  # doubled units, as in the reference code: effectively forbids

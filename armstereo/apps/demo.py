@@ -23,12 +23,12 @@ from armstereo.capture.run import model_metadata
 from armstereo.cli.capture_cmd import capture_to_file
 from armstereo.errors import RecordingError
 from armstereo.evaluation.depth import DepthAccuracy, score_depth, visible_mask
+from armstereo.io.images import depth_error_map, side_by_side, write_png
+from armstereo.io.ply import write_ply
 from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
-from armstereo.pipeline import reconstruct_pair, write_reconstruction_mcap
-from armstereo.ply import write_ply
+from armstereo.reconstruct.pipeline import reconstruct_pair, write_reconstruction_mcap
 from armstereo.recording import Recording
-from armstereo.visualize import depth_error_map, side_by_side, write_png
 
 DEFAULT_BASELINE_M = 0.08
 DEMO_FILES = ("demo.mcap", "points.ply", "disparity.png", "rectified.png", "depth_error.png",

@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from armstereo.bt.cost import VARIATION_THRESHOLD
+from armstereo.reconstruct.birchfield.cost import VARIATION_THRESHOLD
 
 TH_RELIABLE = 14  # reference code's reliability threshold ...
 ALPHA = 0.15  # ... and its tolerance

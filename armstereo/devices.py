@@ -15,8 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from armstereo.camera_model import Intrinsics
+from armstereo.clock import Clock
 from armstereo.errors import HardwareError
-from drivers.clock import Clock
 
 
 class ArmState(enum.Enum):

@@ -37,17 +37,17 @@ import logging
 import cv2
 import numpy as np
 
-from armstereo.bt import dp as _dp
-from armstereo.bt.dp_fast import max_exact_width
-from armstereo.bt.matcher import DP_EXACT, DP_PRUNED, match_image
-from armstereo.bt.postprocess import postprocess as _postprocess
-from armstereo.bt.refine import (
+from armstereo.errors import StereoError
+from armstereo.reconstruct.birchfield import dp_pruned as _dp
+from armstereo.reconstruct.birchfield.dp_exact import max_exact_width
+from armstereo.reconstruct.birchfield.matcher import DP_EXACT, DP_PRUNED, match_image
+from armstereo.reconstruct.birchfield.postprocess import postprocess as _postprocess
+from armstereo.reconstruct.birchfield.refine import (
     left_right_mismatch,
     occluded_by_nearer,
     refine_gradient,
     refine_parabola,
 )
-from armstereo.errors import StereoError
 
 log = logging.getLogger(__name__)
 

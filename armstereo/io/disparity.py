@@ -11,7 +11,7 @@ Conventions:
   its own, e.g. 16 for Tsukuba, 8 for Venus, 4 for Teddy and Cones); 0 reads as NaN.
 
 Files are written atomically (temporary file and rename). Colour views for people are in
-:func:`armstereo.visualize.colorize_disparity`.
+:func:`armstereo.io.images.colorize_disparity`.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ import cv2
 import numpy as np
 
 from armstereo.errors import StereoError
-from armstereo.ply import write_bytes_atomic
+from armstereo.io.ply import write_bytes_atomic
 
 PNG_SCALE = 256  # 16-bit PNG value per pixel of disparity (KITTI convention)
 DISPARITY_SUFFIXES = (".pfm", ".png")  # what write_disparity can write

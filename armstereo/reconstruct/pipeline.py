@@ -23,24 +23,29 @@ from pathlib import Path
 import numpy as np
 
 from armstereo.camera_model import Intrinsics
+from armstereo.devices import Frame
 from armstereo.errors import ConfigError, RecordingError
-from armstereo.ply import write_ply
-from armstereo.recording import Pair, RecordingWriter
-from armstereo.rectify import RectifiedPair, StereoGeometry, rectified_geometry, rectify_pair
-from armstereo.stereo import METHODS, compute_disparity
-from armstereo.triangulate import (
-    depth_from_disparity,
-    depth_in_original_view,
-    point_cloud,
-)
-from armstereo.visualize import (
+from armstereo.io.images import (
     colorize_disparity,
     depth_error_map,
     side_by_side,
     write_depth_png,
     write_png,
 )
-from drivers.base import Frame
+from armstereo.io.ply import write_ply
+from armstereo.reconstruct.rectify import (
+    RectifiedPair,
+    StereoGeometry,
+    rectified_geometry,
+    rectify_pair,
+)
+from armstereo.reconstruct.stereo import METHODS, compute_disparity
+from armstereo.reconstruct.triangulate import (
+    depth_from_disparity,
+    depth_in_original_view,
+    point_cloud,
+)
+from armstereo.recording import Pair, RecordingWriter
 
 log = logging.getLogger(__name__)
 
