@@ -29,8 +29,11 @@ class Intrinsics:
         object.__setattr__(self, "dist", dist)
         if self.width <= 0 or self.height <= 0:
             raise ConfigError(f"image size must be positive, got {self.width}x{self.height}")
+        if not np.all(np.isfinite(K)) or not np.all(np.isfinite(dist)):
+            raise ConfigError("camera matrix K and distortion must be finite numbers")
         if K[0, 0] <= 0 or K[1, 1] <= 0 or K[2, 2] != 1.0 or K[1, 0] or K[2, 0] or K[2, 1]:
-            raise ConfigError(f"camera matrix K must be upper triangular with fx, fy > 0: {K}")
+            raise ConfigError("camera matrix K must be [[fx, s, cx], [0, fy, cy], [0, 0, 1]] "
+                              f"with fx, fy > 0, got {K.round(6).tolist()}")
         if dist.size not in (4, 5, 8, 12, 14):
             raise ConfigError(f"distortion needs 4, 5, 8, 12 or 14 coefficients, not {dist.size}")
 

@@ -29,7 +29,7 @@ from numpy.typing import ArrayLike
 
 from armstereo.errors import ConfigError, IKError, JointLimitError
 from armstereo.mount import CameraMount
-from armstereo.transforms import invert
+from armstereo.transforms import as_rigid, invert, nearest_rotation
 from robot_models import MODELS_DIR
 
 log = logging.getLogger(__name__)
@@ -49,7 +49,6 @@ UNREACHABLE = "unreachable"
 MAX_STEP_RAD = 0.2  # largest joint change per IK step: keeps DLS from jumping branches
 SINGULAR_SIGMA = 1e-3  # sigma_min (mixed m/rad units) below which a failed IK is called singular
 _DAMPING_START, _DAMPING_MIN, _DAMPING_MAX = 1e-6, 1e-12, 1e2
-_ROTATION_TOL = 1e-6  # how far from orthonormal a target rotation may be before we refuse it
 
 # Flange pointing straight down (tool0 z = -base z), upper arm vertical, forearm horizontal,
 # wrist 2 at -90 deg: the classic UR "ready" pose, far from the shoulder, elbow and wrist
@@ -310,17 +309,10 @@ def _resolve_urdf(name_or_path: str | Path) -> tuple[str, Path]:
 
 
 def _as_pose(T, what: str) -> np.ndarray:
-    """Validate a 4x4 rigid transform and snap its rotation onto SO(3)."""
-    T = np.array(T, dtype=float)
-    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-        raise ConfigError(f"{what} must be a finite 4x4 transform, got shape {T.shape}")
-    R = T[:3, :3]
-    if (not np.allclose(T[3], [0, 0, 0, 1]) or not np.allclose(R.T @ R, np.eye(3),
-                                                               atol=_ROTATION_TOL)
-            or np.linalg.det(R) < 0):
-        raise ConfigError(f"{what} is not a rigid transform (rotation not orthonormal)")
-    U, _, Vt = np.linalg.svd(R)
-    T[:3, :3] = U @ Vt
+    """Validate a 4x4 rigid transform and snap its rotation exactly onto SO(3) (Pinocchio's
+    log map expects a clean rotation)."""
+    T = as_rigid(T, what)
+    T[:3, :3] = nearest_rotation(T[:3, :3])
     return T
 
 

@@ -26,7 +26,7 @@ import numpy as np
 
 from armstereo.camera_model import Intrinsics
 from armstereo.errors import ArmstereoError, ConfigError
-from armstereo.transforms import make_T, rot_x, rot_y, rot_z
+from armstereo.transforms import as_rigid, make_T, rot_x, rot_y, rot_z
 from robot_models import MOUNTS_DIR
 
 DEFAULT_MOUNT = "default_wrist_camera"
@@ -61,30 +61,50 @@ class CameraMount:
     def from_dict(cls, doc: dict, source: str = "") -> CameraMount:
         """Build a mount from the parsed TOML structure documented in this module."""
         he = doc["hand_eye"]
-        t = np.asarray(he["translation"], dtype=float)
+        t = _finite_array(he["translation"], "hand_eye.translation", (3,))
         if "rotation_matrix" in he:
-            R = np.asarray(he["rotation_matrix"], dtype=float)
-            if (R.shape != (3, 3) or not np.allclose(R @ R.T, np.eye(3), atol=1e-6)
-                    or np.linalg.det(R) < 0):
-                raise ConfigError("hand_eye.rotation_matrix must be a 3x3 rotation")
+            R = _finite_array(he["rotation_matrix"], "hand_eye.rotation_matrix", (3, 3))
+            what = "hand_eye.rotation_matrix"
         else:
-            roll, pitch, yaw = (float(v) for v in he.get("rotation_rpy", [0.0, 0.0, 0.0]))
-            R = rot_z(yaw) @ rot_y(pitch) @ rot_x(roll)
-        if t.shape != (3,):
-            raise ConfigError("hand_eye.translation must have 3 numbers")
+            rpy = _finite_array(he.get("rotation_rpy", [0.0, 0.0, 0.0]),
+                                "hand_eye.rotation_rpy", (3,))
+            R = rot_z(rpy[2]) @ rot_y(rpy[1]) @ rot_x(rpy[0])
+            what = "hand_eye.rotation_rpy"
+        # Hand-eye tools print rotations to a few decimals: snap those onto SO(3).
+        T = as_rigid(make_T(R, t), what, snap=True)
         cam = doc["camera"]
         intr = Intrinsics(
-            width=int(cam["width"]),
-            height=int(cam["height"]),
-            K=np.asarray(cam["K"], dtype=float),
-            dist=np.asarray(cam.get("dist", [0.0] * 5), dtype=float),
+            width=_whole(cam["width"], "camera.width"),
+            height=_whole(cam["height"], "camera.height"),
+            K=_finite_array(cam["K"], "camera.K", (3, 3)),
+            dist=_finite_array(cam.get("dist", [0.0] * 5), "camera.dist", None),
         )
-        return cls(name=str(doc.get("name", "mount")), T_flange_camera=make_T(R, t),
-                   intrinsics=intr, source=source)
+        return cls(name=str(doc.get("name", "mount")), T_flange_camera=T, intrinsics=intr,
+                   source=source)
 
     @property
     def sha256(self) -> str:
         return hashlib.sha256(self.source.encode()).hexdigest()
+
+
+def _finite_array(value, field: str, shape: tuple[int, ...] | None) -> np.ndarray:
+    """``value`` as a finite float array of ``shape`` (any 1-D length if None)."""
+    try:
+        a = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{field} must be numbers, got {value!r}") from None
+    if (shape is not None and a.shape != shape) or (shape is None and a.ndim != 1):
+        want = "x".join(map(str, shape)) if shape else "a list of"
+        raise ConfigError(f"{field} must be {want} numbers, got shape {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise ConfigError(f"{field} must be finite, got {a.tolist()}")
+    return a
+
+
+def _whole(value, field: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise ConfigError(f"{field} must be a whole number of pixels, got {value!r}")
+    return value
 
 
 def resolve_mount_path(name_or_path: str | Path | None) -> Path:

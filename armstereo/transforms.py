@@ -7,7 +7,20 @@ the UR driver.
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
+
+from armstereo.errors import ArmstereoError, ConfigError
+
+# One rule for every pose in the library: a rotation may be this far from orthonormal
+# (max |R^T R - I|), which float64 arithmetic on valid rotations never exceeds.
+ROTATION_TOLERANCE = 1e-6
+# Poses typed by hand or printed by other tools (six decimals) are this far off at most; input
+# edges (mount files, the public API) snap such rotations onto SO(3) instead of refusing them.
+SNAP_TOLERANCE = 1e-3
+
+log = logging.getLogger(__name__)
 
 
 def make_T(R: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -28,6 +41,52 @@ def transform_points(T_a_b: np.ndarray, p_b: np.ndarray) -> np.ndarray:
     """Map Nx3 points from frame b to frame a."""
     p_b = np.asarray(p_b, dtype=float)
     return p_b @ T_a_b[:3, :3].T + T_a_b[:3, 3]
+
+
+def nearest_rotation(R: np.ndarray) -> np.ndarray:
+    """The rotation matrix closest to ``R`` (3x3) in the Frobenius norm (SVD, det +1)."""
+    U, _, Vt = np.linalg.svd(np.asarray(R, dtype=float))
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
+    return U @ D @ Vt
+
+
+def rotation_error(R: np.ndarray) -> float:
+    """How far ``R`` (3x3) is from orthonormal: max |R^T R - I|."""
+    R = np.asarray(R, dtype=float)
+    return float(np.abs(R.T @ R - np.eye(3)).max())
+
+
+def as_rigid(T, name: str = "transform", *, error: type[ArmstereoError] = ConfigError,
+             snap: bool = False) -> np.ndarray:
+    """``T`` as a float64 4x4 rigid transform (a copy), or ``error`` naming ``name``.
+
+    Checks: shape 4x4, finite, last row ``0 0 0 1``, rotation orthonormal within
+    :data:`ROTATION_TOLERANCE` with determinant +1. With ``snap=True`` (input edges only) a
+    rotation within :data:`SNAP_TOLERANCE` is replaced by the nearest rotation instead.
+    """
+    try:
+        T = np.array(T, dtype=float)
+    except (TypeError, ValueError):
+        raise error(f"{name} must be a 4x4 array of numbers, got {T!r}") from None
+    if T.shape != (4, 4):
+        raise error(f"{name} must be a 4x4 transform, got shape {T.shape}")
+    if not np.all(np.isfinite(T)):
+        raise error(f"{name} is not a rigid transform: it holds NaN or inf")
+    if np.abs(T[3] - (0.0, 0.0, 0.0, 1.0)).max() > ROTATION_TOLERANCE:
+        raise error(f"{name} is not a rigid transform: its last row is {T[3].tolist()}, "
+                    "not 0 0 0 1")
+    R = T[:3, :3]
+    err = rotation_error(R)
+    limit = SNAP_TOLERANCE if snap else ROTATION_TOLERANCE
+    if err > limit or np.linalg.det(R) <= 0:
+        what = "a reflection" if np.linalg.det(R) <= 0 else f"|R^T R - I| = {err:.1e}"
+        raise error(f"{name} is not a rigid transform: its rotation is {what} "
+                    f"(tolerance {limit:.0e})")
+    if err > ROTATION_TOLERANCE:
+        log.info("%s: rotation re-orthonormalized (|R^T R - I| was %.1e)", name, err)
+        T[:3, :3] = nearest_rotation(R)
+    T[3] = (0.0, 0.0, 0.0, 1.0)
+    return T
 
 
 def rotvec_to_matrix(rotvec: np.ndarray) -> np.ndarray:

@@ -31,14 +31,13 @@ import numpy as np
 
 from armstereo.camera_model import Intrinsics
 from armstereo.errors import StereoError
-from armstereo.transforms import invert, make_T
+from armstereo.transforms import as_rigid, invert, make_T
 
 log = logging.getLogger(__name__)
 
 MIN_BASELINE_ANGLE_DEG = 5.0  # below this angle to the optical axis the problem is degenerate
 MAX_CANVAS_SCALE = 1.5  # rectified canvas sides are capped at this multiple of the input's
 MAP_TOLERANCE = 1e-3  # px: float32 maps land a hair outside the image on its border
-POSE_TOLERANCE = 1e-6  # how far a pose's rotation may be from orthonormal
 
 
 class Rectification(NamedTuple):
@@ -393,14 +392,7 @@ class _View:
 
 
 def _check_pose(T: np.ndarray, name: str) -> np.ndarray:
-    T = np.asarray(T, dtype=float)
-    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-        raise StereoError(f"{name} must be a finite 4x4 pose, got shape {T.shape}")
-    R = T[:3, :3]
-    err = float(np.abs(R.T @ R - np.eye(3)).max())
-    if err > POSE_TOLERANCE or np.linalg.det(R) <= 0:
-        raise StereoError(f"{name} is not a rigid transform (rotation off by {err:.2g})")
-    return T
+    return as_rigid(T, name, error=StereoError)
 
 
 def second_view_is_left(T_base_cam1: np.ndarray, T_base_cam2: np.ndarray) -> bool:

@@ -41,7 +41,7 @@ from armstereo.camera_model import Intrinsics
 from armstereo.devices import Frame
 from armstereo.errors import ConfigError, RecordingError
 from armstereo.recording import schemas as S
-from armstereo.transforms import quaternion_xyzw
+from armstereo.transforms import as_rigid, quaternion_xyzw
 
 log = logging.getLogger(__name__)
 
@@ -58,7 +58,6 @@ PNG_PARAMS: tuple[int, ...] = (
       if hasattr(cv2, "IMWRITE_PNG_FILTER") else ()),
 )
 JPEG_QUALITY = 95
-ROTATION_TOLERANCE = 1e-6  # max |R R^T - I| accepted for a pose's rotation
 POINT_STRIDE = 16  # x, y, z float32 + r, g, b, a uint8
 
 
@@ -407,15 +406,8 @@ def _frames_message(T_base_flange: np.ndarray, T_flange_camera: np.ndarray,
 
 def _transform(name: str, T: np.ndarray, parent: str, child: str, t_ns: int) -> FrameTransform:
     """FrameTransform for the pose of ``child`` in ``parent`` (``T_parent_child``)."""
-    T = np.asarray(T, dtype=float)
-    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-        raise RecordingError(f"{name} must be a finite 4x4 transform, got shape {T.shape}")
-    R = T[:3, :3]
-    err = float(np.abs(R @ R.T - np.eye(3)).max())
-    if err > ROTATION_TOLERANCE or np.linalg.det(R) <= 0 or np.any(T[3] != (0, 0, 0, 1)):
-        raise RecordingError(f"{name} is not a rigid transform (|R R^T - I| = {err:.1e}, "
-                             f"limit {ROTATION_TOLERANCE:.0e})")
-    x, y, z, w = quaternion_xyzw(R)
+    T = as_rigid(T, name, error=RecordingError)
+    x, y, z, w = quaternion_xyzw(T[:3, :3])
     tx, ty, tz = T[:3, 3]
     return FrameTransform(timestamp=_stamp(t_ns), parent_frame_id=parent, child_frame_id=child,
                           translation=Vector3(x=tx, y=ty, z=tz),

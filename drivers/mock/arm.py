@@ -37,7 +37,7 @@ from armstereo.errors import (
     MotionTimeout,
     ProtectiveStop,
 )
-from armstereo.transforms import make_T, matrix_to_rotvec, rotvec_to_matrix
+from armstereo.transforms import as_rigid, make_T, matrix_to_rotvec, rotvec_to_matrix
 from drivers.mock.faults import FAULT_FRACTION, Fault, FaultPlan
 
 if TYPE_CHECKING:
@@ -344,15 +344,7 @@ def _check_q(q, what: str, name: str) -> np.ndarray:
 
 
 def _check_pose(T, name: str) -> np.ndarray:
-    T = _as_float_array(T, "target pose", name)
-    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-        raise ConfigError(f"{name}: target must be a finite 4x4 pose, got shape {T.shape}")
-    R = T[:3, :3]
-    if (not np.allclose(T[3], [0, 0, 0, 1]) or not np.allclose(R @ R.T, np.eye(3), atol=1e-6)
-            or np.linalg.det(R) <= 0):
-        raise ConfigError(f"{name}: target is not a rigid transform (rotation not orthonormal "
-                          f"or bottom row not [0 0 0 1])")
-    return T.copy()
+    return as_rigid(T, f"{name}: target T_base_flange")
 
 
 def _check_positive(value: float, what: str, limit: float, unit: str, name: str) -> None:

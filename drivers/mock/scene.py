@@ -29,7 +29,7 @@ import numpy as np
 from armstereo.camera_model import Intrinsics
 from armstereo.errors import ConfigError
 from armstereo.evaluation.scene_truth import SceneTruth, TruthPrimitive
-from armstereo.transforms import invert, make_T, rot_z
+from armstereo.transforms import as_rigid, invert, make_T, rot_z
 
 # Centre of the default table scene, base-frame (x, y) in metres. At their ready configuration
 # UR arms hold the flange in front of the base, looking straight down (UR5e: flange at
@@ -608,13 +608,7 @@ def _in_footprint(prim: Primitive, T_camera_base: np.ndarray, xn, yn) -> np.ndar
 
 
 def _check_pose(T: np.ndarray) -> np.ndarray:
-    T = np.asarray(T, dtype=float)
-    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-        raise ConfigError(f"camera pose must be a finite 4x4 transform, got shape {T.shape}")
-    R = T[:3, :3]
-    if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
-        raise ConfigError("camera pose rotation is not a proper rotation matrix")
-    return T
+    return as_rigid(T, "camera pose T_base_camera")
 
 
 # --------------------------------------------------------------------------------------------

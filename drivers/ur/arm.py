@@ -47,7 +47,7 @@ from armstereo.errors import (
     MotionTimeout,
     ProtectiveStop,
 )
-from armstereo.transforms import T_from_ur_pose, matrix_to_rotvec, ur_pose_from_T
+from armstereo.transforms import T_from_ur_pose, as_rigid, matrix_to_rotvec, ur_pose_from_T
 from drivers.ur.channel import ControlChannel
 from drivers.ur.diagnose import connection_failed
 from drivers.ur.probe import DASHBOARD_PORT, ControllerInfo, check_controller, check_port
@@ -630,17 +630,7 @@ def _check_timeout(timeout: float) -> None:
 
 
 def _rigid(T) -> np.ndarray:
-    """``T`` as a float 4x4 rigid transform, or ConfigError saying what is wrong."""
-    T = np.asarray(T, dtype=float)
-    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-        raise ConfigError(f"move_linear target must be a finite 4x4 T_base_flange, got shape "
-                          f"{T.shape}")
-    R = T[:3, :3]
-    if (np.abs(T[3] - (0, 0, 0, 1)).max() > 1e-9 or np.abs(R.T @ R - np.eye(3)).max() > 1e-6
-            or np.linalg.det(R) < 0):
-        raise ConfigError("move_linear target is not a rigid transform (rotation not "
-                          "orthonormal or last row not 0 0 0 1)")
-    return T
+    return as_rigid(T, "move_linear target T_base_flange")
 
 
 def _pose_error(T_target: np.ndarray, ur_pose: np.ndarray) -> tuple[float, float]:
