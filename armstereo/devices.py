@@ -16,7 +16,7 @@ import numpy as np
 
 from armstereo.camera_model import Intrinsics
 from armstereo.clock import Clock
-from armstereo.errors import HardwareError
+from armstereo.errors import HardwareError, NotConnected
 
 
 class ArmState(enum.Enum):
@@ -71,36 +71,54 @@ def trapezoid_duration(distance: float, speed: float, acceleration: float) -> fl
     return 2.0 * math.sqrt(distance / acceleration)
 
 
-class Arm(ABC):
-    """A 6-DoF arm. Every method that moves blocks until the move ends or raises.
+class Device(ABC):
+    """The life cycle every arm and camera shares: ``connect()``, use, ``close()`` (or a
+    ``with`` block). Using a device that is not connected, or connecting it twice, raises
+    :class:`armstereo.errors.NotConnected` naming the device."""
 
-    Errors: :class:`armstereo.errors.ConnectionFailed` / ``ConnectionLost`` / ``ProtectiveStop`` /
-    ``EmergencyStop`` / ``MotionTimeout``. On any error during a move the backend stops the
-    arm before raising.
-    """
-
-    name: str = "arm"
-    clock: Clock
+    name: str = "device"
+    _connected: bool = False  # set by connect()/close(); the guards read only this flag
 
     @abstractmethod
     def connect(self) -> None:
-        """Open the connection; raises ConnectionFailed naming the host/device."""
+        """Open the device; raises ConnectionFailed naming it (host, index, path). A connect
+        that fails half way leaves nothing open."""
 
     @abstractmethod
     def close(self) -> None:
-        """Stop any motion and release the connection. Safe to call twice."""
+        """Release the device (an arm stops first). Safe to call twice; never raises."""
 
     @property
-    @abstractmethod
     def is_connected(self) -> bool:
-        """True between a successful connect() and close() while the link is up."""
+        """True between a successful connect() and close()."""
+        return self._connected
 
-    def __enter__(self) -> Arm:
+    def __enter__(self):
         self.connect()
         return self
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+    def _require_connected(self) -> None:
+        if not self._connected:
+            raise NotConnected(f"{self.name}: not connected; call connect() first")
+
+    def _require_not_connected(self) -> None:
+        if self._connected:
+            raise NotConnected(f"{self.name}: already connected; close() it first")
+
+
+class Arm(Device):
+    """A 6-DoF arm. Every method that moves blocks until the move ends or raises.
+
+    Errors: :class:`armstereo.errors.ConnectionFailed` / ``ConnectionLost`` / ``ProtectiveStop`` /
+    ``EmergencyStop`` / ``MotionTimeout`` / ``NotConnected``. On any error during a move the
+    backend stops the arm before raising.
+    """
+
+    name: str = "arm"
+    clock: Clock
 
     @abstractmethod
     def joint_positions(self) -> np.ndarray:
@@ -127,6 +145,11 @@ class Arm(ABC):
     @abstractmethod
     def status(self) -> ArmStatus:
         """Safety/connection state, without raising."""
+
+    @abstractmethod
+    def recover_protective_stop(self, timeout: float = 15.0) -> None:
+        """Release a protective stop (what the pendant's 'unlock' does) so the arm can move
+        again; raises HardwareError if it is still stopped after ``timeout`` seconds."""
 
     def require_ok(self) -> None:
         """Raise the HardwareError matching a non-normal status."""
@@ -156,25 +179,10 @@ class Frame:
     depth: np.ndarray | None = None
 
 
-class Camera(ABC):
+class Camera(Device):
     """A camera that delivers fresh frames on request."""
 
     name: str = "camera"
-
-    @abstractmethod
-    def connect(self) -> None:
-        """Open the device; raises ConnectionFailed naming it."""
-
-    @abstractmethod
-    def close(self) -> None:
-        """Release the device. Safe to call twice."""
-
-    def __enter__(self) -> Camera:
-        self.connect()
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
 
     @property
     @abstractmethod

@@ -53,6 +53,10 @@ class ConnectionFailed(HardwareError):
     """Could not connect to a device (names the host or device)."""
 
 
+class NotConnected(HardwareError):
+    """A device was used before ``connect()`` or after ``close()``, or connected twice."""
+
+
 class ConnectionLost(HardwareError):
     """An established connection dropped."""
 

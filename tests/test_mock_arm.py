@@ -12,10 +12,10 @@ from armstereo.devices import MAX_JOINT_SPEED, MAX_LINEAR_SPEED, ArmState
 from armstereo.errors import (
     ConfigError,
     ConnectionLost,
-    HardwareError,
     IKError,
     JointLimitError,
     MotionTimeout,
+    NotConnected,
     ProtectiveStop,
 )
 from armstereo.kinematics import ArmModel, ready_configuration
@@ -216,7 +216,7 @@ def test_protective_stop_mid_move(model):
     with pytest.raises(ProtectiveStop):
         arm.require_ok()
     arm.stop()
-    arm.unlock_protective_stop()
+    arm.recover_protective_stop()
     arm.move_linear(target, **LIN)  # move 3 (the refused one counted as none)
     assert np.linalg.norm(model.flange_pose(arm.joint_positions())[:3, 3] - target[:3, 3]) < 1e-6
 
@@ -295,11 +295,11 @@ def test_inputs_are_validated(model):
     with pytest.raises(JointLimitError):
         arm.move_joints(model.upper + 0.1, speed=0.5, acceleration=1.0)
     assert arm.moves_started == 0
-    with pytest.raises(HardwareError, match="already connected"):
+    with pytest.raises(NotConnected, match="already connected"):
         arm.connect()
     arm.close()
     arm.close()
-    with pytest.raises(HardwareError, match="not connected"):
+    with pytest.raises(NotConnected, match="not connected"):
         arm.joint_positions()
     with pytest.raises(ConfigError):
         MockArm(model, clock=SimClock(), realtime=True)

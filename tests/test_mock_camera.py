@@ -7,7 +7,7 @@ import pytest
 
 from armstereo.camera_model import Intrinsics
 from armstereo.clock import SimClock
-from armstereo.errors import CameraTimeout, ConfigError, HardwareError
+from armstereo.errors import CameraTimeout, ConfigError, NotConnected
 from armstereo.transforms import make_T
 from drivers.mock.camera import MockCamera
 from drivers.mock.faults import FaultPlan
@@ -79,11 +79,11 @@ def test_camera_timeout_fault_hits_the_named_grab_only():
 
 def test_connection_life_cycle_and_validation():
     cam = MockCamera(INTR, Pose(), scene=SCENE)
-    with pytest.raises(HardwareError, match="not connected"):
+    with pytest.raises(NotConnected, match="not connected"):
         cam.grab()
     with cam:
         assert cam.is_connected and cam.intrinsics is INTR
-        with pytest.raises(HardwareError, match="already connected"):
+        with pytest.raises(NotConnected, match="already connected"):
             cam.connect()
         with pytest.raises(ConfigError):
             cam.grab(timeout=0)

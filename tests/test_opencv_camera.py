@@ -12,7 +12,12 @@ import pytest
 
 from armstereo.camera_model import Intrinsics
 from armstereo.clock import SimClock
-from armstereo.errors import CameraTimeout, ConfigError, ConnectionFailed, HardwareError
+from armstereo.errors import (
+    CameraTimeout,
+    ConfigError,
+    ConnectionFailed,
+    NotConnected,
+)
 from drivers.opencv import camera as camera_module
 from drivers.opencv.camera import OpenCVCamera
 
@@ -170,13 +175,13 @@ def test_non_v4l2_backend_uses_legacy_manual_value_and_ignored_props_warn(dev, c
 
 def test_close_is_idempotent_and_grab_needs_connect(dev):
     cam = OpenCVCamera(0, INTRINSICS, timeout=0.2)
-    with pytest.raises(HardwareError, match="not open"):
+    with pytest.raises(NotConnected, match="not connected"):
         cam.grab()
     cam.connect()
     cam.close()
     cam.close()
     assert dev.captures[0].releases == 1
-    with pytest.raises(HardwareError, match="not open"):
+    with pytest.raises(NotConnected, match="not connected"):
         cam.grab()
 
 

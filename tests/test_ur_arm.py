@@ -26,6 +26,7 @@ from armstereo.errors import (
     HardwareError,
     JointLimitError,
     MotionTimeout,
+    NotConnected,
     ProtectiveStop,
 )
 from armstereo.transforms import make_T, rot_x, rot_y, rot_z, ur_pose_from_T
@@ -573,13 +574,13 @@ def test_close_is_idempotent_and_stops_the_script(arm, ctl):
     assert names.count("control.disconnect") == 1 and names.count("receive.disconnect") == 1
     assert names.index("stopL") < names.index("stopScript") < names.index("control.disconnect")
     assert not arm.is_connected and arm.status().state is ArmState.DISCONNECTED
-    with pytest.raises(HardwareError, match="not connected"):
+    with pytest.raises(NotConnected, match="not connected"):
         arm.joint_positions()
     arm.stop()  # nothing to stop, must not raise
 
 
 def test_connect_twice_is_refused(arm):
-    with pytest.raises(HardwareError, match="already connected"):
+    with pytest.raises(NotConnected, match="already connected"):
         arm.connect()
 
 

@@ -32,7 +32,6 @@ from armstereo.devices import (
 from armstereo.errors import (
     ConfigError,
     ConnectionLost,
-    HardwareError,
     IKError,
     MotionTimeout,
     ProtectiveStop,
@@ -116,8 +115,7 @@ class MockArm(Arm):
     def connect(self) -> None:
         """Open the simulated link (also after a lost one: the arm kept its joints)."""
         self.history.append(("connect", {}))
-        if self._connected:
-            raise HardwareError(f"{self.name}: already connected")
+        self._require_not_connected()
         self._connected, self._lost = True, False
         if self._state is ArmState.DISCONNECTED:
             self._state, self._detail = ArmState.NORMAL, ""
@@ -128,16 +126,12 @@ class MockArm(Arm):
             self._connected = False
             self._state, self._detail = ArmState.DISCONNECTED, "closed"
 
-    @property
-    def is_connected(self) -> bool:
-        return self._connected
-
     def status(self) -> ArmStatus:
         return ArmStatus(self._state, self._detail)
 
-    def unlock_protective_stop(self) -> None:
-        """Clear a protective stop (what the teach pendant's 'unlock' does)."""
-        self.history.append(("unlock_protective_stop", {}))
+    def recover_protective_stop(self, timeout: float = 15.0) -> None:
+        """Clear a protective stop (what the teach pendant's 'unlock' does); at once."""
+        self.history.append(("recover_protective_stop", {"timeout": timeout}))
         self._require_link()
         if self._state is ArmState.PROTECTIVE_STOP:
             self._state, self._detail = ArmState.NORMAL, ""
@@ -310,8 +304,7 @@ class MockArm(Arm):
     def _require_link(self) -> None:
         if self._lost:
             raise ConnectionLost(f"{self.name}: {self._detail}; reconnect first")
-        if not self._connected:
-            raise HardwareError(f"{self.name}: not connected; call connect() first")
+        self._require_connected()
 
     def _require_ready(self) -> None:
         self._require_link()

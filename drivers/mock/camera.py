@@ -17,7 +17,7 @@ import numpy as np
 from armstereo.camera_model import Intrinsics
 from armstereo.clock import Clock, SimClock
 from armstereo.devices import Camera, Frame
-from armstereo.errors import CameraTimeout, ConfigError, HardwareError
+from armstereo.errors import CameraTimeout, ConfigError
 from drivers.mock.faults import FaultPlan
 from drivers.mock.scene import Scene, default_table_scene
 
@@ -63,17 +63,12 @@ class MockCamera(Camera):
         self._last_depth: np.ndarray | None = None
 
     def connect(self) -> None:
-        """Open the (simulated) device; raises HardwareError if it is already open."""
-        if self._connected:
-            raise HardwareError(f"{self.name}: already connected")
+        """Open the (simulated) device; raises NotConnected if it is already open."""
+        self._require_not_connected()
         self._connected = True
 
     def close(self) -> None:
         self._connected = False
-
-    @property
-    def is_connected(self) -> bool:
-        return self._connected
 
     @property
     def intrinsics(self) -> Intrinsics:
@@ -88,10 +83,9 @@ class MockCamera(Camera):
         """Render a frame from the current camera pose.
 
         Raises CameraTimeout (naming the camera) for an injected ``camera-timeout`` after
-        waiting ``timeout`` seconds on the clock, HardwareError when not connected.
+        waiting ``timeout`` seconds on the clock, NotConnected when not connected.
         """
-        if not self._connected:
-            raise HardwareError(f"{self.name}: not connected; call connect() first")
+        self._require_connected()
         if not (math.isfinite(timeout) and timeout > 0):
             raise ConfigError(f"{self.name}: grab timeout must be > 0 s, got {timeout}")
         self.grabs += 1

@@ -13,12 +13,8 @@ delivers them (BGR for colour devices).
 from __future__ import annotations
 
 import logging
-import queue
-import threading
 import time
 from collections.abc import Callable
-from concurrent.futures import Future
-from concurrent.futures import TimeoutError as FutureTimeout
 from typing import Any
 
 import cv2
@@ -28,6 +24,7 @@ from armstereo.camera_model import Intrinsics
 from armstereo.clock import Clock, RealClock
 from armstereo.devices import Camera, Frame
 from armstereo.errors import CameraTimeout, ConfigError, ConnectionFailed, HardwareError
+from drivers.worker import DeadlineMissed, SerialWorker
 
 log = logging.getLogger(__name__)
 
@@ -82,7 +79,7 @@ class OpenCVCamera(Camera):
         self.name = f"camera {device!r}"
         self.settings: dict[str, float] = {}
         self._cap = None
-        self._worker: _Worker | None = None
+        self._worker: SerialWorker | None = None
 
     @property
     def intrinsics(self) -> Intrinsics:
@@ -94,9 +91,8 @@ class OpenCVCamera(Camera):
         Raises ConnectionFailed (won't open, or no first frame within ``timeout``), ConfigError
         (the device delivers another size than the intrinsics).
         """
-        if self._cap is not None:
-            raise HardwareError(f"{self.name}: already open")
-        self._worker = _Worker(f"opencv-{self.device}")
+        self._require_not_connected()
+        self._worker = SerialWorker(f"opencv-{self.device}")
         try:
             self._cap = self._on_worker(self._open, self.timeout, "opening")
             if self._cap is None:
@@ -112,6 +108,7 @@ class OpenCVCamera(Camera):
                 raise ConfigError(f"camera {self.device!r} {problem}: choose a mount whose "
                                   f"intrinsics match the device's mode, or another device")
             self._on_worker(self._lock_settings, self.timeout, "locking exposure")
+            self._connected = True
         except BaseException:
             self.close()
             raise
@@ -119,14 +116,13 @@ class OpenCVCamera(Camera):
     def close(self) -> None:
         """Release the device (after any read in flight returns). Idempotent."""
         worker, cap = self._worker, self._cap
-        self._worker, self._cap = None, None
+        self._worker, self._cap, self._connected = None, None, False
         if worker is None:
             return
         if cap is not None:
-            job = worker.submit(cap.release)
             try:
-                job.result(self.timeout)
-            except FutureTimeout:
+                worker.call(cap.release, timeout=self.timeout)
+            except DeadlineMissed:
                 log.warning("%s: still blocked in a read; it is released when that returns",
                             self.name)
             except Exception as err:  # noqa: BLE001 - closing must not raise
@@ -137,8 +133,7 @@ class OpenCVCamera(Camera):
         """A frame grabbed after this call began: ``flush_frames`` buffered frames are discarded
         first. ``timestamp_ns`` is the clock at the moment the kept frame was grabbed.
         Raises CameraTimeout naming the device after ``timeout`` s (default: the constructor's)."""
-        if self._cap is None:
-            raise HardwareError(f"{self.name}: not open (call connect() first)")
+        self._require_connected()
         timeout = self.timeout if timeout is None else timeout
         _check_positive("grab timeout", timeout)
         got = self._read(self.flush_frames, timeout)
@@ -169,11 +164,10 @@ class OpenCVCamera(Camera):
     def _read(self, flush: int, timeout: float) -> tuple[np.ndarray, int] | None:
         """(image, timestamp_ns) grabbed within ``timeout`` s after ``flush`` discards, or None."""
         deadline = time.monotonic() + timeout
-        job = self._worker.submit(self._read_job, flush, deadline)
         try:
-            return job.result(timeout + READ_GRACE_S)
-        except FutureTimeout:
-            job.cancel()  # drop it if it never started (an earlier read is still blocked)
+            return self._worker.call(self._read_job, flush, deadline,
+                                     timeout=timeout + READ_GRACE_S)
+        except DeadlineMissed:
             return None
 
     def _read_job(self, flush: int, deadline: float) -> tuple[np.ndarray, int] | None:
@@ -219,11 +213,9 @@ class OpenCVCamera(Camera):
 
     # --------------------------------------------------------------------------- helpers
     def _on_worker(self, fn: Callable[[], Any], timeout: float, what: str) -> Any:
-        job = self._worker.submit(fn)
         try:
-            return job.result(timeout + READ_GRACE_S)
-        except FutureTimeout:
-            job.cancel()
+            return self._worker.call(fn, timeout=timeout + READ_GRACE_S)
+        except DeadlineMissed:
             raise ConnectionFailed(f"camera {self.device!r} did not respond within {timeout:g} s "
                                    f"while {what}") from None
 
@@ -234,31 +226,6 @@ class OpenCVCamera(Camera):
             return (f"delivers {width}x{height} images but the intrinsics are for "
                     f"{want_w}x{want_h}")
         return None
-
-
-class _Worker:
-    """One daemon thread running submitted callables in order."""
-
-    def __init__(self, name: str):
-        self._jobs: queue.SimpleQueue = queue.SimpleQueue()
-        threading.Thread(target=self._serve, name=name, daemon=True).start()
-
-    def submit(self, fn: Callable, *args: Any) -> Future:
-        job: Future = Future()
-        self._jobs.put((job, fn, args))
-        return job
-
-    def close(self) -> None:
-        self._jobs.put(None)
-
-    def _serve(self) -> None:
-        while (item := self._jobs.get()) is not None:
-            job, fn, args = item
-            if job.set_running_or_notify_cancel():
-                try:
-                    job.set_result(fn(*args))
-                except BaseException as err:  # noqa: BLE001 - handed to the waiting caller
-                    job.set_exception(err)
 
 
 def _resolve_backend(backend: str | int | None, device: int | str) -> int:

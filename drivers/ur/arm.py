@@ -45,6 +45,7 @@ from armstereo.errors import (
     EmergencyStop,
     HardwareError,
     MotionTimeout,
+    NotConnected,
     ProtectiveStop,
 )
 from armstereo.transforms import T_from_ur_pose, as_rigid, matrix_to_rotvec, ur_pose_from_T
@@ -146,8 +147,7 @@ class URArm(Arm):
         controller's flange pose is far from this model's FK). A failed connect leaves nothing
         open.
         """
-        if self._connected:
-            raise HardwareError(f"{self.name}: already connected")
+        self._require_not_connected()
         rtde_control, rtde_receive, _ = _import_ur_rtde()
         self.controller = check_controller(self.host, self.connect_timeout)
         log.info("UR controller at %s: %s", self.host, self.controller)
@@ -479,14 +479,10 @@ class URArm(Arm):
                                     f"({st.describe()})")
             self.clock.sleep(self.poll_interval)
 
-    def _require_connected(self) -> None:
-        if not self._connected or self._rr is None:
-            raise HardwareError(f"{self.name}: not connected (call connect() first)")
-
     def _call(self, method: str, *args, timeout: float | None = None, **kwargs):
         """One control-interface call through the channel (serialised, with a deadline)."""
         if self._ch is None:
-            raise HardwareError(f"{self.name}: control interface not connected")
+            raise NotConnected(f"{self.name}: not connected; call connect() first")
         return self._ch.call(method, *args, timeout=self.call_timeout if timeout is None
                              else timeout, **kwargs)
 
@@ -504,7 +500,7 @@ class URArm(Arm):
     def _rr_get(self, getter: str):
         """A receive-interface getter; ur_rtde's errors become HardwareError."""
         if self._rr is None:
-            raise HardwareError(f"{self.name}: not connected (call connect() first)")
+            raise NotConnected(f"{self.name}: not connected; call connect() first")
         try:
             return getattr(self._rr, getter)()
         except ArmstereoError:
