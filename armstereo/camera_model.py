@@ -62,6 +62,22 @@ class Intrinsics:
         """(width, height), OpenCV's order."""
         return (self.width, self.height)
 
+    def scaled(self, width: int, height: int) -> Intrinsics:
+        """The same camera delivering ``width`` x ``height`` images (a binned or scaled mode of
+        the same sensor): K scaled about pixel corners, distortion unchanged (it acts on
+        normalised coordinates). ConfigError if the aspect ratio differs by more than a pixel."""
+        sx, sy = width / self.width, height / self.height
+        if abs(sx * self.height - height) > 1.0 or abs(sy * self.width - width) > 1.0:
+            raise ConfigError(f"{width}x{height} does not have the aspect ratio of the "
+                              f"calibrated {self.width}x{self.height}; calibrate at that mode")
+        K = self.K.copy()
+        K[0, :] *= sx
+        K[1, :] *= sy
+        # pixel centres sit at integer coordinates: (c + 0.5) scales, c does not
+        K[0, 2] = (self.cx + 0.5) * sx - 0.5
+        K[1, 2] = (self.cy + 0.5) * sy - 0.5
+        return Intrinsics(width, height, K, self.dist.copy())
+
     def projection(self, T_camera_world: np.ndarray) -> np.ndarray:
         """3x4 projection matrix K [R | t] for a camera whose pose is given as T_camera_world."""
         return self.K @ np.asarray(T_camera_world, dtype=float)[:3, :]

@@ -17,6 +17,11 @@ import numpy as np
 from armstereo.camera_model import Intrinsics
 from armstereo.clock import Clock
 from armstereo.errors import HardwareError, NotConnected
+from armstereo.frame import Frame
+
+__all__ = ["MAX_JOINT_ACCELERATION", "MAX_JOINT_SPEED", "MAX_LINEAR_ACCELERATION",
+           "MAX_LINEAR_SPEED", "Arm", "ArmState", "ArmStatus", "Camera", "Device", "Frame",
+           "MotionLimits", "trapezoid_duration"]
 
 
 class ArmState(enum.Enum):
@@ -166,19 +171,6 @@ class Arm(Device):
                 f"{self.name}: {st.state.value}" + (f" ({st.detail})" if st.detail else ""))
 
 
-@dataclass
-class Frame:
-    """One camera image. ``timestamp_ns`` is the exposure time on the shared clock.
-
-    ``depth`` is ground-truth z-depth in metres (float32, NaN where nothing was hit); only
-    simulated cameras provide it.
-    """
-
-    image: np.ndarray
-    timestamp_ns: int
-    depth: np.ndarray | None = None
-
-
 class Camera(Device):
     """A camera that delivers fresh frames on request."""
 
@@ -188,6 +180,11 @@ class Camera(Device):
     @abstractmethod
     def intrinsics(self) -> Intrinsics:
         """Image size, K and distortion of the delivered images."""
+
+    def recording_metadata(self) -> dict[str, str]:
+        """What a recording should keep about this camera (str -> str), e.g. the settings it
+        locked or, for a simulated camera, its scene's ground truth. Read after connect."""
+        return {}
 
     @abstractmethod
     def grab(self, timeout: float = 2.0) -> Frame:

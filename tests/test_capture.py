@@ -2,19 +2,18 @@
 
 from __future__ import annotations
 
-import argparse
-
 import numpy as np
 import pytest
 
 from armstereo.capture import CaptureSettings, plan_capture
-from armstereo.capture.backends import mock_start_configuration
 from armstereo.capture.plan import parse_direction
-from armstereo.cli.capture_cmd import _confirm_motion
+from armstereo.capture.session import confirm_live_motion
+from armstereo.cli.capture_cmd import ask_to_move
 from armstereo.cli.main import main
 from armstereo.errors import ConfigError, PreflightError, UserAbort
 from armstereo.kinematics import ArmModel
 from armstereo.recording import Recording
+from drivers.mock.start_poses import table_start as mock_start_configuration
 
 
 @pytest.fixture(scope="module")
@@ -122,14 +121,18 @@ def test_existing_output_is_not_overwritten(tmp_path, capsys):
 
 
 def test_live_motion_needs_yes_or_a_typed_confirmation(monkeypatch):
-    args = argparse.Namespace(arm="ur", yes=False, robot="ur5e", host="10.0.0.2")
+    def confirm(yes=False):
+        confirm_live_motion(live=True, yes=yes, ask=lambda: ask_to_move("The ur5e "))
+
     monkeypatch.setattr("sys.stdin.isatty", lambda: False)
     with pytest.raises(UserAbort, match="--yes"):
-        _confirm_motion(args)
+        confirm()
     monkeypatch.setattr("sys.stdin.isatty", lambda: True)
     monkeypatch.setattr("builtins.input", lambda prompt: "no")
     with pytest.raises(UserAbort, match="nothing moved"):
-        _confirm_motion(args)
+        confirm()
     monkeypatch.setattr("builtins.input", lambda prompt: "move")
-    _confirm_motion(args)
-    _confirm_motion(argparse.Namespace(arm="ur", yes=True))
+    confirm()
+    monkeypatch.setattr("builtins.input", lambda prompt: pytest.fail("asked despite --yes"))
+    confirm(yes=True)
+    confirm_live_motion(live=False, yes=False, ask=lambda: pytest.fail("asked for the mock"))

@@ -19,8 +19,7 @@ import numpy as np
 import pytest
 from rtde_emulator.harness import EmulatedController, free_loopback_address
 
-from armstereo.capture.backends import mock_start_configuration
-from armstereo.cli import capture_cmd
+from armstereo.capture import session
 from armstereo.cli.main import main
 from armstereo.devices import ArmState
 from armstereo.errors import (
@@ -31,6 +30,7 @@ from armstereo.errors import (
 )
 from armstereo.kinematics import ArmModel
 from armstereo.recording import Recording
+from drivers.mock.start_poses import table_start as mock_start_configuration
 from drivers.ur.arm import URArm
 from drivers.ur.channel import ControlChannel
 from drivers.ur.probe import rtde_handshake
@@ -85,7 +85,7 @@ def control_calls(monkeypatch) -> list[str]:
 def capture_errors(monkeypatch) -> list[BaseException]:
     """Exceptions that leave run_capture, before the CLI turns them into a line and a code."""
     errors: list[BaseException] = []
-    original = capture_cmd.run_capture
+    original = session.run_capture
 
     def spy(*args, **kwargs):
         try:
@@ -94,7 +94,7 @@ def capture_errors(monkeypatch) -> list[BaseException]:
             errors.append(err)
             raise
 
-    monkeypatch.setattr(capture_cmd, "run_capture", spy)
+    monkeypatch.setattr(session, "run_capture", spy)
     return errors
 
 

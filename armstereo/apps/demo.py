@@ -15,12 +15,11 @@ from pathlib import Path
 
 import numpy as np
 
-from armstereo import __version__
+from armstereo import __version__, backends
 from armstereo.capture import CaptureSettings, plan_capture
-from armstereo.capture.backends import build_arm, build_camera
 from armstereo.capture.plan import validate_settings
 from armstereo.capture.run import model_metadata
-from armstereo.cli.capture_cmd import capture_to_file
+from armstereo.capture.session import capture_to_file
 from armstereo.errors import RecordingError
 from armstereo.evaluation.depth import DepthAccuracy, score_depth, visible_mask
 from armstereo.io.images import depth_error_map, side_by_side, write_png
@@ -59,8 +58,6 @@ def demo_settings(options: DemoOptions) -> CaptureSettings:
 def run_demo(out_dir: Path, options: DemoOptions = DemoOptions(),
              progress: Callable[[str], None] = lambda s: None) -> dict:
     """Capture, reconstruct, write the demo files into ``out_dir`` and return the report."""
-    from drivers.mock.scene import default_table_scene
-
     settings = demo_settings(options)
     out_dir.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
@@ -70,12 +67,12 @@ def run_demo(out_dir: Path, options: DemoOptions = DemoOptions(),
              f"(baseline {options.baseline * 1000:.0f} mm)")
     t0 = time.perf_counter()
     model = ArmModel.load(options.robot, mount=CameraMount.load(None))
-    arm = build_arm("mock", model, joint_noise=options.joint_noise, seed=options.seed)
-    with arm:
+    arm_config = backends.arm_config("mock", joint_noise=options.joint_noise, seed=options.seed)
+    camera_config = backends.camera_config("mock", noise=options.camera_noise, seed=options.seed,
+                                           scene=backends.mock_table_scene(options.seed))
+    with backends.build_arm("mock", arm_config, model) as arm:
         plan = plan_capture(model, arm.joint_positions(), settings)
-        camera = build_camera("mock", model, arm, noise=options.camera_noise, seed=options.seed,
-                              scene=default_table_scene(options.seed))
-        with camera:
+        with backends.build_camera("mock", camera_config, model, arm) as camera:
             capture_to_file(arm, camera, model, plan, out_dir / "demo.mcap",
                             {**model_metadata(model), "arm": "mock",
                              "camera": "mock", "baseline_m": repr(options.baseline),

@@ -3,19 +3,19 @@
 from __future__ import annotations
 
 import argparse
-import contextlib
 import logging
-import signal
 import sys
 from pathlib import Path
 
-from armstereo.capture import CaptureSettings, Workspace, plan_capture, run_capture
-from armstereo.capture.backends import ARM_KINDS, build_arm, build_camera
+from armstereo import backends
+from armstereo.capture import CaptureSettings, Workspace, plan_capture
 from armstereo.capture.plan import parse_direction
 from armstereo.capture.run import CaptureResult, model_metadata
+from armstereo.capture.session import capture_to_file, confirm_live_motion
+from armstereo.cli.backend_flags import BackendChoice, add_backend_flags, backend_choice
 from armstereo.devices import MotionLimits
-from armstereo.errors import ArmstereoError, ConfigError, UserAbort
-from armstereo.kinematics import MODEL_NAMES, ArmModel
+from armstereo.errors import ConfigError
+from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
 
 log = logging.getLogger("armstereo.capture")
@@ -26,7 +26,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                        description="Stop-and-shoot capture: at each view wait until steady, "
                        "settle, grab, read the actual joints; between views move the camera by "
                        "the baseline along a camera-frame direction; return to the start.")
-    add_backend_args(p)
+    add_backend_flags(p)
     p.add_argument("--baseline", type=float, default=0.10, help="camera move per pair (m)")
     p.add_argument("--direction", default="x",
                    help="camera-frame direction: x, -x, y, -y or dx,dy,dz (default x)")
@@ -47,32 +47,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def add_backend_args(p: argparse.ArgumentParser) -> None:
-    """Arm, camera and mock options shared by capture, demo and sweep."""
-    p.add_argument("--arm", choices=ARM_KINDS, default="mock", help="arm backend (default mock)")
-    p.add_argument("--host", default=None, help="UR controller address (with --arm ur)")
-    p.add_argument("--camera", default="mock", help="mock or opencv:<index-or-path>")
-    p.add_argument("--robot", default="ur5e", help=f"arm model: {', '.join(MODEL_NAMES)} or URDF")
-    p.add_argument("--mount", default=None, help="camera mount file (default: bundled mount)")
-    p.add_argument("--inject-fault", action="append", default=[], metavar="NAME[@N]",
-                   help="mock backends only: disconnect, protective-stop, camera-timeout, "
-                   "stuck-move (N = which move or grab)")
-    p.add_argument("--joint-noise", type=float, default=0.0,
-                   help="mock arm: joint repeatability noise, rad (default 0)")
-    p.add_argument("--camera-noise", type=float, default=0.0,
-                   help="mock camera: sensor noise sigma in grey levels (default 0)")
-    p.add_argument("--realtime", action="store_true",
-                   help="mock arm: move in real time instead of simulated time")
-    p.add_argument("--seed", type=int, default=0, help="seed for the mock backends' noise")
-
-
 def run(args: argparse.Namespace) -> int:
+    choice = backend_choice(args)
     out = _output_path(args.out, args.force, args.dry_run)
     model = ArmModel.load(args.robot, mount=CameraMount.load(args.mount))
     settings = settings_from_args(args, model)
-    faults = _faults(args)
-    arm = build_arm(args.arm, model, host=args.host, realtime=args.realtime,
-                    joint_noise=args.joint_noise, faults=faults, seed=args.seed)
+    arm = backends.build_arm(choice.arm, choice.arm_config, model)
     with arm:
         arm.require_ok()
         plan = plan_capture(model, arm.joint_positions(), settings)
@@ -82,15 +62,23 @@ def run(args: argparse.Namespace) -> int:
         if args.dry_run:
             print("dry run: nothing moved")
             return 0
-        _confirm_motion(args)
-        camera = build_camera(args.camera, model, arm, faults=faults, noise=args.camera_noise,
-                              seed=args.seed)
-        with camera:
-            _check_camera(camera, model)
-            result = capture_to_file(arm, camera, model, plan, out, _metadata(args, model),
+        host = getattr(choice.arm_config, "host", None)
+        confirm_live_motion(live=choice.arm != "mock", yes=args.yes,
+                            ask=lambda: ask_to_move(f"The {args.robot} at {host} "))
+        camera = backends.build_camera(choice.camera, choice.camera_config, model, arm)
+        with camera:  # connect checks the device delivers what the (scaled) intrinsics say
+            result = capture_to_file(arm, camera, model, plan, out, _metadata(args, choice, model),
                                      image_format=args.image_format)
     _print_summary(result, out)
     return 0
+
+
+def ask_to_move(what: str) -> str | None:
+    """Warn and ask for the confirmation word at the terminal; None without a terminal."""
+    if not sys.stdin.isatty():
+        return None
+    print(f"{what}will move. Keep clear and keep the e-stop in reach.")
+    return input("Type 'move' to start: ")
 
 
 def settings_from_args(args: argparse.Namespace, model: ArmModel) -> CaptureSettings:
@@ -99,24 +87,6 @@ def settings_from_args(args: argparse.Namespace, model: ArmModel) -> CaptureSett
     box = Workspace.parse(args.workspace) if args.workspace else None
     return CaptureSettings(baseline=args.baseline, direction=direction, direction_label=label,
                            pairs=args.pairs, settle_s=args.settle, limits=limits, workspace=box)
-
-
-def capture_to_file(arm, camera, model, plan, out: Path, metadata: dict[str, str],
-                    image_format: str = "png", progress=log.info) -> CaptureResult:
-    """Run the capture into ``out``; the file is finished whatever happens (even SIGTERM)."""
-    from armstereo.recording import RecordingWriter
-
-    result = CaptureResult()
-    with _sigterm_as_interrupt(), RecordingWriter(out, metadata=metadata,
-                                                  image_format=image_format) as writer:
-        try:
-            run_capture(arm, camera, model, plan, writer, progress=progress, result=result)
-        except ArmstereoError as err:
-            err.args = (f"{err}; {result.views} view(s) kept in {out}",)
-            raise
-        except KeyboardInterrupt:
-            raise UserAbort(f"interrupted; {result.views} view(s) kept in {out}") from None
-    return result
 
 
 def _output_path(text: str, force: bool, dry_run: bool) -> Path:
@@ -130,43 +100,17 @@ def _output_path(text: str, force: bool, dry_run: bool) -> Path:
     return out
 
 
-def _faults(args: argparse.Namespace):
-    if not args.inject_fault:
-        return None
-    if args.arm != "mock" and args.camera != "mock":
-        raise ConfigError("--inject-fault works with the mock arm or mock camera only")
-    from drivers.mock.faults import FaultPlan
-
-    return FaultPlan.parse(args.inject_fault)
-
-
-def _confirm_motion(args: argparse.Namespace) -> None:
-    """Live motion (a real arm) needs --yes or the word 'move' typed at a terminal."""
-    if args.arm == "mock" or args.yes:
-        return
-    if not sys.stdin.isatty():
-        raise UserAbort("live motion needs --yes or a typed confirmation (stdin is not a terminal)")
-    print(f"The {args.robot} at {args.host} will move. Keep clear and keep the e-stop in reach.")
-    answer = input("Type 'move' to start: ").strip().lower()
-    if answer != "move":
-        raise UserAbort("not confirmed; nothing moved")
-
-
-def _check_camera(camera, model: ArmModel) -> None:
-    got, want = camera.intrinsics.size, model.mount.intrinsics.size
-    if got != want:
-        raise ConfigError(f"camera delivers {got[0]}x{got[1]} but the mount says "
-                          f"{want[0]}x{want[1]}; fix the mount file")
-
-
-def _metadata(args: argparse.Namespace, model: ArmModel) -> dict[str, str]:
+def _metadata(args: argparse.Namespace, choice: BackendChoice,
+              model: ArmModel) -> dict[str, str]:
+    arm, cam = choice.arm_config, choice.camera_config
     return {
-        **model_metadata(model), "arm": args.arm, "host": args.host or "", "camera": args.camera,
-        "baseline_m": repr(args.baseline), "direction": args.direction,
+        **model_metadata(model), "arm": args.arm, "host": getattr(arm, "host", None) or "",
+        "camera": args.camera, "baseline_m": repr(args.baseline), "direction": args.direction,
         "pairs": str(args.pairs), "speed_m_s": repr(args.speed),
         "acceleration_m_s2": repr(args.acceleration), "settle_s": repr(args.settle),
-        "joint_noise_rad": repr(args.joint_noise), "camera_noise": repr(args.camera_noise),
-        "faults": ",".join(args.inject_fault),
+        "joint_noise_rad": repr(getattr(arm, "joint_noise", 0.0)),
+        "camera_noise": repr(getattr(cam, "noise", 0.0)),
+        "faults": ",".join(getattr(arm, "faults", ()) or getattr(cam, "faults", ())),
     }
 
 
@@ -177,20 +121,3 @@ def _print_summary(result: CaptureResult, out: Path) -> None:
         print(f"  pair {p.pair} (views {p.left_view},{p.right_view}): commanded "
               f"{p.commanded_m * 1000:.2f} mm, achieved {p.achieved_m * 1000:.3f} mm "
               f"({err:+.3f} mm)")
-
-
-@contextlib.contextmanager
-def _sigterm_as_interrupt():
-    """Treat SIGTERM like Ctrl-C so the arm stops and the recording is finished."""
-    def handler(signum, frame):
-        raise KeyboardInterrupt
-
-    try:
-        previous = signal.signal(signal.SIGTERM, handler)
-    except ValueError:  # not the main thread (e.g. called from a test thread)
-        yield
-        return
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)

@@ -5,15 +5,18 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
+from armstereo import backends
 from armstereo.apps.sweep import Target, best_baseline, format_table, plot, run_sweep, write_csv
 from armstereo.capture import CaptureSettings, plan_capture
-from armstereo.capture.backends import build_arm, build_camera, sweep_start_configuration
 from armstereo.capture.run import model_metadata
-from armstereo.cli.capture_cmd import _confirm_motion, add_backend_args, capture_to_file
+from armstereo.capture.session import capture_to_file, confirm_live_motion
+from armstereo.cli.backend_flags import BackendChoice, add_backend_flags, backend_choice
+from armstereo.cli.capture_cmd import ask_to_move
 from armstereo.devices import MotionLimits
 from armstereo.errors import ConfigError
 from armstereo.kinematics import ArmModel
@@ -23,6 +26,8 @@ from armstereo.recording import Recording
 
 DEFAULT_BASELINES = "0.025,0.05,0.075,0.1,0.15,0.2,0.3"
 DEFAULT_DISTANCES = "0.8,1.1,1.4,1.7,2.0,2.2"
+# A real sensor is never noise free; the sweep's shape depends on it.
+SWEEP_DEFAULTS = {"noise": 2.0}
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -42,26 +47,31 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="linear speed cap (m/s)")
     p.add_argument("--settle", type=float, default=0.5, help="settle time before a shot (s)")
     p.add_argument("--yes", action="store_true", help="allow live motion without asking")
-    add_backend_args(p)
-    # A real sensor is never noise free; the sweep's shape depends on it.
-    p.set_defaults(func=run, camera_noise=2.0)
+    add_backend_flags(p, defaults=SWEEP_DEFAULTS)
+    p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     baselines = _floats(args.baselines, "--baselines")
-    if args.arm != "mock" and not args.target:
+    mock = args.arm == "mock"
+    if not mock and not args.target:
         raise ConfigError("a sweep on a real arm needs --target U0,V0,U1,V1=DIST for each "
                           "target you placed and measured")
+    if mock and args.target:
+        raise ConfigError("--target is for a real arm; the mock places its own targets "
+                          "(--distances)")
+    if not mock and args.distances != DEFAULT_DISTANCES:
+        raise ConfigError("--distances is for the mock arm; on a real arm give --target")
+    fixed = {"arm": {"layout": "horizontal"}} if mock else {}
+    choice = backend_choice(args, defaults=SWEEP_DEFAULTS, fixed=fixed)
     out = Path(args.out or f"armstereo-sweep-{time.strftime('%Y%m%d-%H%M%S')}")
     model = ArmModel.load(args.robot, mount=CameraMount.load(args.mount))
+    capture_one = (_mock_capture(args, choice, model, baselines, out) if mock
+                   else _live_capture(args, choice, model, out))
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise ConfigError(f"cannot create output folder {out}: {err.strerror}") from None
-    if args.arm == "mock":
-        capture_one = _mock_capture(args, model, baselines, out)
-    else:
-        capture_one = _live_capture(args, model, out)
     results = run_sweep(baselines, capture_one,
                         lambda s: print(s, file=sys.stderr, flush=True))
     write_csv(out / "sweep.csv", results)
@@ -95,25 +105,23 @@ def _reconstruct(path: Path, args, near: float, far: float):
     return reconstruct_pair(Recording.open(path)[0], method=args.method, near=near, far=far)
 
 
-def _mock_capture(args, model: ArmModel, baselines: list[float], out: Path):
-    from drivers.mock.scene import planar_target_scene
-
+def _mock_capture(args, choice: BackendChoice, model: ArmModel, baselines: list[float],
+                  out: Path):
     distances = _floats(args.distances, "--distances")
-    q0 = sweep_start_configuration(model)
-    ts = planar_target_scene(distances, model.camera_pose(q0), model.mount.intrinsics,
-                             max_baseline=max(baselines), seed=args.seed)
+    q0 = backends.mock_start_joints(model, "horizontal")
+    seed = choice.camera_config.seed
+    ts = backends.mock_target_scene(distances, model.camera_pose(q0), model.mount.intrinsics,
+                                    max_baseline=max(baselines), seed=seed)
     targets = [Target(t.distance, t.pixel_box) for t in ts.targets]
     near, far = 0.85 * min(distances), 1.15 * max(distances)
+    camera_config = replace(choice.camera_config, scene=ts.scene)
 
     def capture_one(b: float):
-        arm = build_arm("mock", model, q0=q0, joint_noise=args.joint_noise, seed=args.seed)
         path = out / f"sweep_b{b * 1000:.0f}mm.mcap"
-        with arm:
+        with backends.build_arm("mock", choice.arm_config, model) as arm:
             plan = plan_capture(model, arm.joint_positions(), _settings(args, b))
             plan.require_ok()
-            cam = build_camera("mock", model, arm, scene=ts.scene, noise=args.camera_noise,
-                               seed=args.seed)
-            with cam:
+            with backends.build_camera("mock", camera_config, model, arm) as cam:
                 capture_to_file(arm, cam, model, plan, path, _meta(args, model, b),
                                 progress=None)
         recon = _reconstruct(path, args, near, far)
@@ -122,7 +130,7 @@ def _mock_capture(args, model: ArmModel, baselines: list[float], out: Path):
     return capture_one
 
 
-def _live_capture(args, model: ArmModel, out: Path):
+def _live_capture(args, choice: BackendChoice, model: ArmModel, out: Path):
     targets = [Target.parse(t) for t in args.target]
     near = 0.85 * min(t.distance for t in targets)
     far = 1.15 * max(t.distance for t in targets)
@@ -130,16 +138,16 @@ def _live_capture(args, model: ArmModel, out: Path):
 
     def capture_one(b: float):
         nonlocal confirmed
-        arm = build_arm(args.arm, model, host=args.host)
         path = out / f"sweep_b{b * 1000:.0f}mm.mcap"
-        with arm:
+        with backends.build_arm(choice.arm, choice.arm_config, model) as arm:
             arm.require_ok()
             plan = plan_capture(model, arm.joint_positions(), _settings(args, b))
             plan.require_ok()
             if not confirmed:
-                _confirm_motion(args)
+                confirm_live_motion(live=True, yes=args.yes,
+                                    ask=lambda: ask_to_move(f"The {args.robot} "))
                 confirmed = True
-            with build_camera(args.camera, model, arm) as cam:
+            with backends.build_camera(choice.camera, choice.camera_config, model, arm) as cam:
                 capture_to_file(arm, cam, model, plan, path, _meta(args, model, b),
                                 progress=None)
         recon = _reconstruct(path, args, near, far)

@@ -23,8 +23,8 @@ from pathlib import Path
 import numpy as np
 
 from armstereo.camera_model import Intrinsics
-from armstereo.devices import Frame
 from armstereo.errors import ConfigError, RecordingError
+from armstereo.frame import Frame
 from armstereo.io.images import (
     colorize_disparity,
     depth_error_map,

@@ -38,8 +38,8 @@ from mcap_protobuf.schema import register_schema
 
 from armstereo import __version__
 from armstereo.camera_model import Intrinsics
-from armstereo.devices import Frame
 from armstereo.errors import ConfigError, RecordingError
+from armstereo.frame import Frame
 from armstereo.recording import schemas as S
 from armstereo.transforms import as_rigid, quaternion_xyzw
 

@@ -41,6 +41,7 @@ from drivers.mock.faults import FAULT_FRACTION, Fault, FaultPlan
 
 if TYPE_CHECKING:
     from armstereo.kinematics import ArmModel
+    from drivers.mock.config import MockArmConfig
 
 log = logging.getLogger(__name__)
 
@@ -109,6 +110,15 @@ class MockArm(Arm):
         self.moves_started = 0
         self.commanded_q: np.ndarray | None = None  # target of the last completed move
         self.last_move_duration = 0.0  # simulated seconds the last move ran
+
+    @classmethod
+    def from_config(cls, config: MockArmConfig, model: ArmModel) -> MockArm:
+        """The registry's constructor (see :mod:`armstereo.backends`)."""
+        from drivers.mock.start_poses import start_joints
+
+        q0 = start_joints(model, config.layout) if config.q0 is None else config.q0
+        return cls(model, q0, realtime=config.realtime, joint_noise=config.joint_noise,
+                   seed=config.seed, faults=config.fault_plan)
 
     # -- connection ------------------------------------------------------------------------
 

@@ -11,15 +11,20 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from armstereo.camera_model import Intrinsics
 from armstereo.clock import Clock, SimClock
-from armstereo.devices import Camera, Frame
+from armstereo.devices import Arm, Camera, Frame
 from armstereo.errors import CameraTimeout, ConfigError
 from drivers.mock.faults import FaultPlan
 from drivers.mock.scene import Scene, default_table_scene
+
+if TYPE_CHECKING:
+    from armstereo.kinematics import ArmModel
+    from drivers.mock.config import MockCameraConfig
 
 log = logging.getLogger(__name__)
 
@@ -62,6 +67,14 @@ class MockCamera(Camera):
         self._connected = False
         self._last_depth: np.ndarray | None = None
 
+    @classmethod
+    def from_config(cls, config: MockCameraConfig, model: ArmModel, arm: Arm) -> MockCamera:
+        """The registry's constructor: renders from forward kinematics of ``arm``'s actual
+        joints through ``model`` (any arm backend), on the arm's clock."""
+        return cls(model.mount.intrinsics, lambda: model.camera_pose(arm.joint_positions()),
+                   scene=config.scene, clock=arm.clock, noise_sigma=config.noise,
+                   seed=config.seed, faults=config.fault_plan)
+
     def connect(self) -> None:
         """Open the (simulated) device; raises NotConnected if it is already open."""
         self._require_not_connected()
@@ -73,6 +86,11 @@ class MockCamera(Camera):
     @property
     def intrinsics(self) -> Intrinsics:
         return self._intrinsics
+
+    def recording_metadata(self) -> dict[str, str]:
+        """The scene's exact geometry (``scene_truth``, JSON; see
+        :mod:`armstereo.evaluation.scene_truth`), for scoring reconstructions."""
+        return {"scene_truth": self.scene.truth().to_json()}
 
     @property
     def ground_truth_depth(self) -> np.ndarray | None:

@@ -12,19 +12,24 @@ delivers them (BGR for colour devices).
 
 from __future__ import annotations
 
+import json
 import logging
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
 
 from armstereo.camera_model import Intrinsics
 from armstereo.clock import Clock, RealClock
-from armstereo.devices import Camera, Frame
+from armstereo.devices import Arm, Camera, Frame
 from armstereo.errors import CameraTimeout, ConfigError, ConnectionFailed, HardwareError
 from drivers.worker import DeadlineMissed, SerialWorker
+
+if TYPE_CHECKING:
+    from armstereo.kinematics import ArmModel
+    from drivers.opencv.config import OpenCVCameraConfig
 
 log = logging.getLogger(__name__)
 
@@ -80,6 +85,23 @@ class OpenCVCamera(Camera):
         self.settings: dict[str, float] = {}
         self._cap = None
         self._worker: SerialWorker | None = None
+
+    @classmethod
+    def from_config(cls, config: OpenCVCameraConfig, model: ArmModel, arm: Arm) -> OpenCVCamera:
+        """The registry's constructor: the mount's intrinsics (scaled to ``resolution`` if one
+        is asked for) and the arm's clock."""
+        intrinsics = model.mount.intrinsics
+        if config.resolution is not None:
+            intrinsics = intrinsics.scaled(*config.resolution)
+        device = int(config.device) if str(config.device).isdigit() else config.device
+        return cls(device, intrinsics, timeout=config.timeout, exposure=config.exposure,
+                   gain=config.gain, white_balance=config.white_balance,
+                   backend=config.backend, clock=arm.clock)
+
+    def recording_metadata(self) -> dict[str, str]:
+        """The device and the exposure, gain and white balance it locked (read back)."""
+        return {"camera_device": str(self.device),
+                "camera_settings": json.dumps(self.settings, sort_keys=True)}
 
     @property
     def intrinsics(self) -> Intrinsics:

@@ -56,6 +56,7 @@ from drivers.ur.safety import ControllerState
 
 if TYPE_CHECKING:
     from armstereo.kinematics import ArmModel
+    from drivers.ur.config import URArmConfig
 
 log = logging.getLogger(__name__)
 
@@ -134,6 +135,11 @@ class URArm(Arm):
         self._ch: ControlChannel | None = None
         self._connected = False
         self._stop_command = "stopL"
+
+    @classmethod
+    def from_config(cls, config: URArmConfig, model: ArmModel) -> URArm:
+        """The registry's constructor (see :mod:`armstereo.backends`)."""
+        return cls(config.host, model, upper_range_registers=config.upper_range_registers)
 
     def __repr__(self) -> str:
         return f"URArm({self.host!r}, {getattr(self.model, 'name', self.model)!r})"

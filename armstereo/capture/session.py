@@ -1,0 +1,77 @@
+"""A capture as one unit of work: confirm live motion, run the checked plan into a recording
+that is finished whatever happens (errors, Ctrl-C, SIGTERM), and say what was kept.
+
+Shared by ``armstereo capture``, the demo and the baseline sweep.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import signal
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+from armstereo.capture.plan import CapturePlan
+from armstereo.capture.run import CaptureResult, run_capture
+from armstereo.devices import Arm, Camera
+from armstereo.errors import ArmstereoError, UserAbort
+from armstereo.kinematics import ArmModel
+
+log = logging.getLogger(__name__)
+
+CONFIRM_WORD = "move"
+
+
+def confirm_live_motion(*, live: bool, yes: bool, ask: Callable[[], str | None]) -> None:
+    """Live motion (a real arm) needs ``yes`` or the word ``move`` typed at a terminal.
+
+    ``ask`` prompts the user and returns the answer, or None when there is no terminal to ask
+    at. Raises UserAbort (nothing moved) otherwise. Simulated arms need no confirmation.
+    """
+    if not live or yes:
+        return
+    answer = ask()
+    if answer is None:
+        raise UserAbort("live motion needs --yes or a typed confirmation (stdin is not a "
+                        "terminal); nothing moved")
+    if answer.strip().lower() != CONFIRM_WORD:
+        raise UserAbort("not confirmed; nothing moved")
+
+
+def capture_to_file(arm: Arm, camera: Camera, model: ArmModel, plan: CapturePlan, out: Path,
+                    metadata: dict[str, str], *, image_format: str = "png",
+                    progress: Callable[[str], None] | None = log.info) -> CaptureResult:
+    """Run the checked ``plan`` into the recording ``out``; the file is finished whatever
+    happens (even SIGTERM). Errors name how many views were kept."""
+    from armstereo.recording import RecordingWriter
+
+    result = CaptureResult()
+    metadata = {**camera.recording_metadata(), **metadata}
+    with sigterm_as_interrupt(), RecordingWriter(out, metadata=metadata,
+                                                 image_format=image_format) as writer:
+        try:
+            run_capture(arm, camera, model, plan, writer, progress=progress, result=result)
+        except ArmstereoError as err:
+            err.args = (f"{err}; {result.views} view(s) kept in {out}",)
+            raise
+        except KeyboardInterrupt:
+            raise UserAbort(f"interrupted; {result.views} view(s) kept in {out}") from None
+    return result
+
+
+@contextlib.contextmanager
+def sigterm_as_interrupt() -> Iterator[None]:
+    """Treat SIGTERM like Ctrl-C so the arm stops and the recording is finished."""
+    def handler(signum, frame):
+        raise KeyboardInterrupt
+
+    try:
+        previous = signal.signal(signal.SIGTERM, handler)
+    except ValueError:  # not the main thread (e.g. called from a test thread)
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
