@@ -24,7 +24,8 @@ import numpy as np
 from armstereo.devices import Frame
 from armstereo.io.ply import write_ply
 from armstereo.mount import CameraMount
-from armstereo.reconstruct.pipeline import reconstruct_pair, write_outputs
+from armstereo.reconstruct.outputs import write_outputs
+from armstereo.reconstruct.pipeline import reconstruct_pair
 from armstereo.recording import Recording, RecordingWriter
 from armstereo.transforms import invert, make_T, rot_x, rot_z
 from drivers.mock.scene import SCENE_CENTER, default_table_scene
@@ -58,7 +59,7 @@ def run_once(rec_path: Path, out: Path, method: str) -> tuple[dict[str, float], 
     recon = reconstruct_pair(pair, method=method)
     recon.timings_s["decode"] += t_open  # reading the file is part of getting the images
     t0 = time.perf_counter()
-    write_ply(out / "bench.ply", recon.points_base, recon.colors)
+    write_ply(out / "bench.ply", recon.points_base, recon.colors_bgr)
     recon.timings_s["write"] = time.perf_counter() - t0
     return recon.timings_s, recon
 
@@ -88,7 +89,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"pair 640x480 -> {len(recon.points_base)} points, method {args.method}, baseline "
           f"{args.baseline * 1000:.0f} mm along {args.direction}, canvas "
           f"{recon.rectified.size[0]}x{recon.rectified.size[1]}, disparities "
-          f"0..{recon.plan.max_disparity} (depth {recon.plan.near:.3f}..{recon.plan.far:.3f} m)")
+          f"0..{recon.window.max_disparity} "
+          f"(depth {recon.window.near:.3f}..{recon.window.far:.3f} m)")
     density = ok.sum() / np.isfinite(recon.depth_truth).sum()
     print(f"depth vs truth: median rel. error {np.median(rel):.4f}, within 1 %: "
           f"{np.mean(rel < 0.01):.1%}, density {density:.1%}")

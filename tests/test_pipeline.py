@@ -16,8 +16,10 @@ from armstereo.errors import ConfigError, RecordingError
 from armstereo.io.images import depth_from_png16
 from armstereo.io.ply import read_ply
 from armstereo.mount import CameraMount
-from armstereo.reconstruct.pipeline import plan_disparity, reconstruct_pair, write_outputs
+from armstereo.reconstruct.outputs import write_outputs
+from armstereo.reconstruct.pipeline import reconstruct_pair
 from armstereo.reconstruct.rectify import rectified_geometry
+from armstereo.reconstruct.window import choose_window as plan_disparity
 from armstereo.recording import Recording, RecordingWriter
 from armstereo.transforms import invert, make_T, rot_x, rot_z
 
@@ -119,7 +121,7 @@ def test_reconstruction_matches_ground_truth(recon):
     on_box = np.abs(z - BOX[1][2]) < 0.005
     sides = (z > 0) & (z < BOX[1][2])
     assert np.mean(on_table | on_box | sides) > 0.95 and on_box.sum() > 1000
-    assert recon.points_base.dtype == np.float32 and recon.colors.dtype == np.uint8
+    assert recon.points_base.dtype == np.float32 and recon.colors_bgr.dtype == np.uint8
     assert set(recon.timings_s) >= {"decode", "rectify", "match", "triangulate"}
     assert not recon.swapped and recon.left_view == 0
 
@@ -167,7 +169,8 @@ def test_write_outputs(recon, tmp_path):
     assert set(paths) == {"ply", "depth", "disparity", "rectified", "depth_error", "mcap"}
     cloud = read_ply(paths["ply"])
     assert np.array_equal(cloud.points, recon.points_base)
-    assert np.array_equal(cloud.colors_bgr, recon.colors)
+    assert np.array_equal(cloud.colors_bgr, recon.colors_bgr)
+    assert np.array_equal(recon.colors, recon.colors_bgr[:, ::-1])
     depth = depth_from_png16(cv2.imread(str(paths["depth"]), cv2.IMREAD_UNCHANGED))
     ok = np.isfinite(recon.depth_original)
     assert np.array_equal(np.isfinite(depth), ok)

@@ -22,11 +22,10 @@ from armstereo.capture.run import model_metadata
 from armstereo.capture.session import capture_to_file
 from armstereo.errors import RecordingError
 from armstereo.evaluation.depth import DepthAccuracy, score_depth, visible_mask
-from armstereo.io.images import depth_error_map, side_by_side, write_png
-from armstereo.io.ply import write_ply
 from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
-from armstereo.reconstruct.pipeline import reconstruct_pair, write_reconstruction_mcap
+from armstereo.reconstruct.outputs import write_outputs
+from armstereo.reconstruct.pipeline import reconstruct_pair
 from armstereo.recording import Recording
 
 DEFAULT_BASELINE_M = 0.08
@@ -103,13 +102,9 @@ def run_demo(out_dir: Path, options: DemoOptions = DemoOptions(),
 
 
 def _write_products(recon, out_dir: Path) -> None:
-    write_ply(out_dir / "points.ply", recon.points_base, recon.colors,
-              comment="armstereo demo, frame base, metres")
-    write_png(out_dir / "disparity.png", recon.disparity_colorized)
-    write_png(out_dir / "rectified.png", side_by_side(recon.rectified.left, recon.rectified.right))
-    write_png(out_dir / "depth_error.png", depth_error_map(recon.depth_original,
-                                                          recon.depth_truth))
-    write_reconstruction_mcap(recon, out_dir / "reconstruction.mcap")
+    names = {"ply": "points.ply", "disparity": "disparity.png", "rectified": "rectified.png",
+             "depth_error": "depth_error.png", "mcap": "reconstruction.mcap"}
+    write_outputs(recon, out_dir, "demo", paths={k: out_dir / v for k, v in names.items()})
 
 
 def score_reconstruction(depth, pair, *, swapped: bool = False) -> DepthAccuracy:
@@ -130,8 +125,8 @@ def _report(recon, accuracy, timings: dict[str, float], options: DemoOptions) ->
         "accuracy": accuracy.as_dict(),
         "baseline_m": options.baseline,
         "method": options.method,
-        "disparity_range_px": [0, int(recon.plan.max_disparity)],
-        "depth_range_m": [round(recon.plan.near, 4), round(recon.plan.far, 4)],
+        "disparity_range_px": [0, int(recon.window.max_disparity)],
+        "depth_range_m": [round(recon.window.near, 4), round(recon.window.far, 4)],
         "robot": options.robot,
         "armstereo_version": __version__,
     }

@@ -6,7 +6,9 @@ import argparse
 from pathlib import Path
 
 from armstereo.errors import ConfigError, RecordingError, StereoError
-from armstereo.reconstruct.pipeline import METHODS, reconstruct_pair, write_outputs
+from armstereo.reconstruct.outputs import write_outputs
+from armstereo.reconstruct.pipeline import reconstruct_pair
+from armstereo.reconstruct.stereo import METHODS
 from armstereo.recording import Recording
 
 
@@ -93,7 +95,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _report(recon, paths: dict[str, Path]) -> None:
-    plan, t = recon.plan, recon.timings_s
+    plan, t = recon.window, recon.timings_s
     print(f"pair {recon.pair_index}: {len(recon.points_base)} points; left = view "
           f"{recon.left_view}{' (swapped)' if recon.swapped else ''}, "
           f"baseline {recon.rectified.baseline * 1000:.1f} mm")

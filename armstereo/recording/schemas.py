@@ -37,6 +37,11 @@ TOPIC_POINTS = "/points"
 # Derived data (rectified images, disparity, estimated depth, ...) that reconstruction writes
 # beside the recorded topics: listed by inspect, skipped by the reader without a warning.
 DERIVED_TOPIC_PREFIX = "/reconstruction/"
+TOPIC_DEPTH_ESTIMATE = "/reconstruction/depth"  # float32 m, original left view (camera_optical)
+TOPIC_RECTIFIED_LEFT = "/reconstruction/rectified_left"
+TOPIC_RECTIFIED_RIGHT = "/reconstruction/rectified_right"
+TOPIC_DISPARITY = "/reconstruction/disparity"  # colorized, rectified left view
+FRAME_RECTIFIED_LEFT = "camera_rectified_left"
 
 PROTOBUF = MessageEncoding.Protobuf  # message and schema encoding of the foxglove channels
 JSON = MessageEncoding.JSON

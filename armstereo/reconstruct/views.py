@@ -1,0 +1,174 @@
+"""Two images with known camera poses -> a metric, coloured point cloud in the base frame.
+
+This is armstereo's public entry point for users with their own images and poses (a ROS node,
+another robot, a dataset); ``armstereo reconstruct`` calls it for each recorded pair::
+
+    from armstereo import reconstruct_views
+    result = reconstruct_views(img1, img2, K1, K2, T_base_cam1, T_base_cam2)
+    result.points   # (N, 3) float32, base frame, metres
+    result.colors   # (N, 3) uint8, RGB
+
+Stages (each timed in ``timings_s``): ``rectify`` (Fusiello from the poses, lens distortion
+removed in the same remap; the view from which the other lies to the right becomes "left"),
+``match`` (Birchfield-Tomasi or SGBM on the rectified pair) and ``triangulate``.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+from armstereo.camera_model import Intrinsics
+from armstereo.errors import ConfigError, StereoError
+from armstereo.io.images import colorize_disparity
+from armstereo.reconstruct.rectify import RectifiedPair, rectified_geometry, rectify_pair
+from armstereo.reconstruct.stereo import METHODS, compute_disparity
+from armstereo.reconstruct.triangulate import (
+    depth_from_disparity,
+    depth_in_original_view,
+    point_cloud,
+)
+from armstereo.reconstruct.window import DisparityWindow, choose_window, fit_to_canvas
+from armstereo.transforms import as_rigid
+
+log = logging.getLogger(__name__)
+
+# min_disparity = 0 means "out to infinity"; the window's far end is put at this disparity.
+INFINITY_DISPARITY_PX = 0.5
+
+
+@dataclass(kw_only=True)
+class Reconstruction:
+    """Everything one pair produced. Images and depth maps are of the rectified left view unless
+    named ``original``; points are in ``base`` (metres).
+
+    ``swapped`` is True when the second input view became the rectified left image.
+    ``colors_bgr`` is the points' colour as OpenCV images hold it, ``colors`` the same as RGB.
+    """
+
+    swapped: bool
+    method: str
+    window: DisparityWindow
+    rectified: RectifiedPair
+    disparity: np.ndarray
+    points_base: np.ndarray
+    colors_bgr: np.ndarray
+    timings_s: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def points(self) -> np.ndarray:
+        """(N, 3) float32 points in the base frame, metres."""
+        return self.points_base
+
+    @cached_property
+    def colors(self) -> np.ndarray:
+        """(N, 3) uint8 RGB colour of each point."""
+        return np.ascontiguousarray(self.colors_bgr[:, ::-1])
+
+    @cached_property
+    def depth_rect(self) -> np.ndarray:
+        """Depth (m) of each rectified left pixel along the rectified optical axis."""
+        return depth_from_disparity(self.disparity, self.rectified.geometry)
+
+    @cached_property
+    def depth_original(self) -> np.ndarray:
+        """Depth (m) for each pixel of the original left image (for scoring against truth)."""
+        return depth_in_original_view(self.disparity, self.rectified)
+
+    @cached_property
+    def disparity_colorized(self) -> np.ndarray:
+        """The disparity as a colour image over the searched window (PNG and MCAP share it)."""
+        return colorize_disparity(self.disparity, 0, self.window.max_disparity)
+
+
+def reconstruct_views(image1: np.ndarray, image2: np.ndarray, K1: np.ndarray, K2: np.ndarray,
+                      T_base_cam1: np.ndarray, T_base_cam2: np.ndarray, *,
+                      dist1: np.ndarray | None = None, dist2: np.ndarray | None = None,
+                      method: str = "birchfield", near: float | None = None,
+                      far: float | None = None, min_disparity: float | None = None,
+                      max_disparity: float | None = None, disparity_budget: int | str = "auto",
+                      stereo_options: dict | None = None) -> Reconstruction:
+    """Rectify, match and triangulate two views of a static scene.
+
+    ``image1``/``image2``: uint8 grey or BGR images. ``K1``/``K2``: 3x3 camera matrices,
+    ``dist1``/``dist2``: OpenCV distortion coefficients (None = none). ``T_base_cam1``/
+    ``T_base_cam2``: 4x4 camera_optical poses in the base frame (metres); rotations a few 1e-6
+    off orthonormal (printed to six decimals) are re-orthonormalized. The depth range to match is
+    ``near``..``far`` (m), or equivalently ``max_disparity``..``min_disparity`` (pixels of the
+    rectified pair, f b / Z; 0 = infinity); unset ends are guessed from the scene (the plane
+    z = 0 of base) or defaults. ``disparity_budget`` caps the labels searched ("auto" = as the
+    range needs, up to 256). ``method``: "birchfield" (default) or "sgbm";
+    ``stereo_options`` go to the matcher.
+
+    Raises ConfigError for bad options, StereoError when the pair cannot be rectified or
+    matched (no baseline, views that do not overlap, mismatched images).
+    """
+    if method not in METHODS:
+        raise ConfigError(f"--method must be one of {', '.join(METHODS)}, got {method!r}")
+    timings: dict[str, float] = {}
+    with _timed(timings, "rectify"):
+        intr1, T1 = _view(image1, K1, dist1, T_base_cam1, "1")
+        intr2, T2 = _view(image2, K2, dist2, T_base_cam2, "2")
+        geometry0, swapped = rectified_geometry(intr1, T1, intr2, T2)
+        near, far = _depth_range(geometry0, near, far, min_disparity, max_disparity)
+        left_intr, T_left = (intr2, T2) if swapped else (intr1, T1)
+        window = choose_window(geometry0, left_intr, T_left, near=near, far=far,
+                               max_disparity=disparity_budget)
+        rect = rectify_pair(image1, image2, intr1.K, intr1.dist, T1, intr2.K, intr2.dist, T2,
+                            depth_range=(window.near, window.far))
+        window = fit_to_canvas(window, rect.geometry, auto=disparity_budget == "auto")
+    log.debug("left = view %d%s, rotation %.0f deg, baseline %.1f mm, depth %.3f-%.3f m -> "
+              "disparities 0..%d (%s)", 2 if swapped else 1, " (swapped)" if swapped else "",
+              rect.rotation_deg, rect.baseline * 1000, window.near, window.far,
+              window.max_disparity, window.source)
+    with _timed(timings, "match"):
+        disparity = compute_disparity(rect.left, rect.right, window.max_disparity, method=method,
+                                      min_disparity=0, left_mask=rect.left_mask,
+                                      right_mask=rect.right_mask, **(stereo_options or {}))
+    with _timed(timings, "triangulate"):
+        points, colors = point_cloud(disparity, rect.geometry, rect.left)
+    return Reconstruction(swapped=swapped, method=method, window=window, rectified=rect,
+                          disparity=disparity, points_base=points, colors_bgr=colors,
+                          timings_s=timings)
+
+
+def _view(image: np.ndarray, K, dist, T, which: str) -> tuple[Intrinsics, np.ndarray]:
+    """The view's intrinsics (from its image size) and its checked, re-orthonormalized pose."""
+    if not isinstance(image, np.ndarray) or image.ndim not in (2, 3) or image.size == 0:
+        raise StereoError(f"image{which} must be a non-empty (H, W) or (H, W, 3) uint8 array")
+    dist = np.zeros(5) if dist is None else np.asarray(dist, dtype=float).reshape(-1)
+    intr = Intrinsics(int(image.shape[1]), int(image.shape[0]), np.asarray(K, dtype=float),
+                      dist)
+    return intr, as_rigid(T, f"T_base_cam{which}", error=StereoError, snap=True)
+
+
+def _depth_range(geometry, near, far, min_disparity, max_disparity):
+    """(near, far) in metres from whichever of near/far or max/min disparity is given."""
+    fb = geometry.fx * geometry.baseline
+    if max_disparity is not None:
+        if near is not None:
+            raise ConfigError("give near or max_disparity, not both")
+        if not max_disparity > 0:
+            raise ConfigError(f"max_disparity must be > 0 px, got {max_disparity}")
+        near = fb / max_disparity
+    if min_disparity is not None:
+        if far is not None:
+            raise ConfigError("give far or min_disparity, not both")
+        if not min_disparity >= 0:
+            raise ConfigError(f"min_disparity must be >= 0 px, got {min_disparity}")
+        far = fb / max(float(min_disparity), INFINITY_DISPARITY_PX)
+    return near, far
+
+
+@contextmanager
+def _timed(timings: dict[str, float], stage: str):
+    t0 = time.perf_counter()
+    try:
+        yield
+    finally:
+        timings[stage] = time.perf_counter() - t0
