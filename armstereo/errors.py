@@ -83,6 +83,13 @@ class RecordingError(ArmstereoError):
     exit_code = 5
 
 
+class OutputError(ArmstereoError):
+    """An output could not be written (disk full, read-only file system, no permission); the
+    message names the path. Outputs completed before it are kept."""
+
+    exit_code = 5
+
+
 class StereoError(ArmstereoError):
     """Rectification, matching or reconstruction cannot run on this input."""
 

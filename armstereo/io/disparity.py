@@ -23,7 +23,8 @@ import cv2
 import numpy as np
 
 from armstereo.errors import StereoError
-from armstereo.io.ply import write_bytes_atomic
+from armstereo.io.files import write_bytes_atomic
+from armstereo.io.images import write_png
 
 PNG_SCALE = 256  # 16-bit PNG value per pixel of disparity (KITTI convention)
 DISPARITY_SUFFIXES = (".pfm", ".png")  # what write_disparity can write
@@ -63,14 +64,7 @@ def write_pfm(path: str | Path, disp: np.ndarray) -> None:
     data = np.where(np.isfinite(disp), disp, np.inf).astype("<f4")
     H, W = data.shape
     header = f"Pf\n{W} {H}\n-1.0\n".encode("ascii")  # negative scale: little-endian
-    _write_bytes(path, header + np.ascontiguousarray(data[::-1]).tobytes())
-
-
-def _write_bytes(path: str | Path, data: bytes) -> None:
-    try:
-        write_bytes_atomic(path, data)
-    except OSError as err:
-        raise StereoError(f"cannot write {path}: {err.strerror}") from err
+    write_bytes_atomic(path, header + np.ascontiguousarray(data[::-1]).tobytes())
 
 
 def read_pfm(path: str | Path) -> np.ndarray:
@@ -109,10 +103,7 @@ def _write_png(path: Path, disp: np.ndarray) -> None:
     data = np.zeros(disp.shape, np.uint16)
     # a real disparity of 0 must not read back as "none": it is stored as 1/256 px
     data[finite] = np.clip(np.rint(disp[finite] * PNG_SCALE), 1, 65535).astype(np.uint16)
-    ok, buf = cv2.imencode(".png", data)
-    if not ok:
-        raise StereoError(f"cannot encode {path} as PNG")
-    _write_bytes(path, buf.tobytes())
+    write_png(path, data)
 
 
 def _read_png(path: Path, scale: float | None) -> np.ndarray:

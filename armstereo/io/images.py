@@ -12,7 +12,7 @@ import cv2
 import numpy as np
 
 from armstereo.errors import StereoError
-from armstereo.io.ply import write_bytes_atomic
+from armstereo.io.files import write_bytes_atomic
 
 DEPTH_PNG_SCALE = 1000.0  # depth PNG units per metre: millimetres
 LEGEND_HEIGHT = 28

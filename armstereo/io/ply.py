@@ -20,14 +20,13 @@ Writes are atomic (temporary file + rename), so a reader never sees half a cloud
 
 from __future__ import annotations
 
-import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from armstereo.errors import StereoError
+from armstereo.io.files import write_bytes_atomic
 
 VERTEX_DTYPE = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"),
                          ("red", "u1"), ("green", "u1"), ("blue", "u1")])
@@ -69,29 +68,6 @@ def encode_ply(points: np.ndarray, colors_bgr: np.ndarray, *, comment: str = "")
     header += [f"property uchar {c}" for c in ("red", "green", "blue")]
     header += ["end_header"]
     return ("\n".join(header) + "\n").encode("ascii") + vertices.tobytes()
-
-
-def _umask() -> int:
-    """The process umask (reading it means setting it, so set it straight back)."""
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-def write_bytes_atomic(path: str | Path, data: bytes) -> Path:
-    """Write ``data`` to ``path`` through a temporary file in the same folder and a rename."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-        # mkstemp makes the file private (0600); give it the mode a plain open() would have
-        os.chmod(tmp, 0o666 & ~_umask())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
 
 
 def write_ply(path: str | Path, points: np.ndarray, colors_bgr: np.ndarray, *,
