@@ -1,0 +1,131 @@
+"""Assembly: turn collected messages into views, pairs and warnings."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from armstereo.camera_model import Intrinsics
+from armstereo.recording import schemas as S
+from armstereo.recording.collect import Collector
+from armstereo.recording.contents import ChannelInfo, Pair, View
+from armstereo.recording.decode import image_size_from_header
+
+if TYPE_CHECKING:
+    from armstereo.recording.reader import Recording
+
+BASELINE_TOLERANCE_M = 1e-4  # event vs poses: larger differences are reported
+
+
+def assemble(rec: Recording, col: Collector) -> None:
+    """Turn collected messages into views, pairs and warnings."""
+    rec.metadata_records = dict(col.metadata)
+    rec.metadata = dict(col.metadata.get(S.METADATA_NAME, {}))
+    if S.METADATA_NAME not in col.metadata:
+        rec._warn(f"no '{S.METADATA_NAME}' metadata record (robot, mount, capture settings)")
+    rec.channels = [ChannelInfo(*info) for info in col.channel_table()]
+    rec.start_ns, rec.end_ns = col.first_ns, col.last_ns
+    rec.point_clouds = list(col.point_clouds)
+    for text in col.problems():
+        rec._warn(text)
+    for text in col.missing_against_statistics():
+        rec._lose(text)
+    _set_calibration(rec, col)
+    _build_views(rec, col)
+    _build_pairs(rec, col)
+    if col.first_ns is None:
+        rec._warn("the recording holds no readable message")
+
+
+def _set_calibration(rec: Recording, col: Collector) -> None:
+    if not col.calibrations:
+        rec._warn(f"no camera calibration ({S.TOPIC_CALIBRATION}): pairs cannot be used")
+        return
+    first = col.calibrations[0]
+    rec.calibration = first.intrinsics
+    rec.calibration_info = {"frame_id": first.frame_id,
+                            "distortion_model": first.distortion_model}
+    if first.frame_id != S.FRAME_CAMERA:
+        rec._warn(f"calibration frame_id is '{first.frame_id}', expected '{S.FRAME_CAMERA}'")
+
+
+def _intrinsics_at(col: Collector, t_ns: int) -> Intrinsics | None:
+    best = None
+    for cal in col.calibrations:  # sorted by time: the latest one not after t_ns
+        if best is None or cal.t_ns <= t_ns:
+            best = cal
+    return None if best is None else best.intrinsics
+
+
+def _build_views(rec: Recording, col: Collector) -> None:
+    claimed: set[int] = set()
+    for index in sorted(col.view_events):
+        t_ns, settle_s = col.view_events[index]
+        missing = [topic for topic, table in ((S.TOPIC_IMAGE, col.images), (S.TOPIC_TF, col.tf))
+                   if t_ns not in table]
+        if missing:
+            rec._lose(f"view {index} is incomplete (no {' or '.join(missing)} message at "
+                      f"{t_ns} ns); skipped")
+            continue
+        claimed.add(t_ns)
+        rec.views.append(_make_view(rec, col, index, t_ns, settle_s))
+    for topic, table in ((S.TOPIC_IMAGE, col.images), (S.TOPIC_TF, col.tf),
+                         (S.TOPIC_DEPTH, col.depth)):
+        orphans = len(set(table) - claimed)
+        if orphans:
+            rec._lose(f"{orphans} message(s) on {topic} belong to no complete view (a view "
+                      "cut short?)")
+
+
+def _make_view(rec: Recording, col: Collector, index: int, t_ns: int,
+               settle_s: float) -> View:
+    fmt, data = col.images[t_ns]
+    frames = col.tf[t_ns]
+    intr = _intrinsics_at(col, t_ns)
+    joints = col.joints.get(index)
+    if joints is None or joints[0] != t_ns:
+        rec._warn(f"view {index} has no joint states on {S.TOPIC_JOINT_STATES}")
+        joints = None
+    size = image_size_from_header(data, fmt)
+    if size is not None and intr is not None and size != intr.size:
+        rec._warn(f"view {index}: image is {size[0]}x{size[1]} but the calibration says "
+                  f"{intr.width}x{intr.height}")
+    for name, norm in frames.quaternion_norms.items():
+        if abs(norm - 1.0) > 1e-6:
+            rec._warn(f"view {index}: {name} rotation quaternion has norm {norm:.6f}, not 1 "
+                      "(not a rotation)")
+    return View(index=index, timestamp_ns=t_ns, T_base_flange=frames.T_base_flange,
+                T_flange_camera=frames.T_flange_camera, intrinsics=intr,
+                joint_names=tuple(joints[1]) if joints else (),
+                joint_positions=np.array(joints[2], dtype=float) if joints else None,
+                settle_s=settle_s, image_format=fmt, image_size=size, _image_data=data,
+                _depth_msg=col.depth.get(t_ns))
+
+
+def _build_pairs(rec: Recording, col: Collector) -> None:
+    views = {v.index: v for v in rec.views}
+    for event in col.pair_events:
+        rec.pair_events.append(event)
+        left, right = views.get(event["left_view"]), views.get(event["right_view"])
+        if left is None or right is None:
+            gone = [k for k, v in ((event["left_view"], left), (event["right_view"], right))
+                    if v is None]
+            rec._lose(f"pair {event['pair']} is incomplete (view {', '.join(map(str, gone))} "
+                      "missing); skipped")
+            continue
+        pair = Pair(event["pair"], left, right, event["commanded_baseline_m"],
+                    event["achieved_baseline_m"], event["direction"])
+        _check_baseline(rec, pair)
+        rec._pairs.append(pair)
+
+
+def _check_baseline(rec: Recording, pair: Pair) -> None:
+    from_poses = float(np.linalg.norm(pair.right.T_base_camera[:3, 3]
+                                      - pair.left.T_base_camera[:3, 3]))
+    if abs(from_poses - pair.achieved_baseline_m) > BASELINE_TOLERANCE_M:
+        rec._warn(f"pair {pair.index}: achieved baseline {pair.achieved_baseline_m * 1000:.3f} mm "
+                  f"in the event but {from_poses * 1000:.3f} mm from the {S.TOPIC_TF} poses "
+                  f"(limit {BASELINE_TOLERANCE_M * 1000:.1f} mm)")
+
+
