@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import os
 import sys
 
 from armstereo import __version__
@@ -55,15 +56,32 @@ def _move_global_flags_first(argv: list[str]) -> list[str]:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the CLI; returns the process exit code (also used by ``sys.exit``)."""
-    argv = _move_global_flags_first(list(sys.argv[1:] if argv is None else argv))
+    try:
+        return _run(_move_global_flags_first(list(sys.argv[1:] if argv is None else argv)))
+    except BrokenPipeError:
+        # The reader of our output went away (`armstereo inspect X | head -1`): what it wanted
+        # it got; end quietly, like any Unix filter.
+        _silence_stdout()
+        return 0
+
+
+def _run(argv: list[str]) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit:
+        sys.stdout.flush()  # --help into a closed pipe: BrokenPipeError, handled by main()
+        raise
     _configure_logging(args.debug, args.quiet)
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
     try:
-        return int(args.func(args) or 0)
+        code = int(args.func(args) or 0)
+        sys.stdout.flush()  # a reader that went away shows here, not at interpreter exit
+        return code
+    except BrokenPipeError:
+        raise
     except ArmstereoError as err:
         if args.debug:
             raise
@@ -80,6 +98,13 @@ def main(argv: list[str] | None = None) -> int:
         print(f"armstereo {args.command}: internal error: {type(err).__name__}: {err} "
               "(run with --debug for the traceback)", file=sys.stderr)
         return 1
+
+
+def _silence_stdout() -> None:
+    """Point stdout at /dev/null so the interpreter's final flush cannot fail again."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())
+    os.close(devnull)
 
 
 if __name__ == "__main__":
