@@ -72,7 +72,7 @@ class ArmSpec:
         return list(zip(a, d, ALPHA, strict=True))
 
 
-# Speeds from UR's manuals as collected in the ROS descriptions (robot-stack.md section 4.2).
+# Speeds from UR's manuals as collected in the ROS descriptions (docs/ur-robots.md §3).
 SPECS = (
     ArmSpec("ur3e", "UR3e", 0.15185, -0.24355, -0.2132, 0.13105, 0.08535, 0.0921,
             (180, 180, 180, 360, 360, 360), (56, 56, 28, 12, 12, 12)),

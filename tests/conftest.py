@@ -2,14 +2,7 @@
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import pytest
-
-# The controller emulator runs as its own process with tests/ on PYTHONPATH and imports itself as
-# ``rtde_emulator``; tests import it the same way, so both see one package.
-sys.path.insert(0, str(Path(__file__).parent))
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:

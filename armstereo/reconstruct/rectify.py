@@ -9,7 +9,7 @@ baseline), so epipolar lines become image rows. Conventions used here:
 * ``v1 = c2 - c1`` (the RectifKit fix of the paper's printed sign): camera 1 is the left one,
   disparities ``d = x_left - x_right`` are positive and ``Z = fx * b / (d - (cx1 - cx2))``.
 * The new intrinsics have zero skew and square pixels (``fx == fy``) unless asked otherwise, so
-  the standard Q matrix holds (the averaged A of the paper has fx != fy, see algorithms.md 1.6).
+  the standard Q matrix holds (the paper's averaged A has fx != fy: docs/rectification.md §6).
 * Homographies ``H`` map original pixels to rectified pixels and include the centering of the
   warped images (RectifKit) and the shared canvas offset; they describe a distortion-free
   pinhole. :func:`rectify_pair` removes lens distortion in the same ``cv2.remap``.
@@ -136,7 +136,7 @@ def _shift_pp(A: np.ndarray, d: tuple[float, float]) -> np.ndarray:
 
 
 def _solve(P1: np.ndarray, P2: np.ndarray, *, square_pixels: bool) -> _Rig:
-    """The paper's algorithm without any image shift (algorithms.md 1.2, 1.3, 1.5)."""
+    """The paper's algorithm without any image shift (docs/rectification.md §3-5)."""
     P1, P2 = _as_ppm(P1), _as_ppm(P2)
     A1, R1, c1 = factor_projection(P1)
     A2, R2, c2 = factor_projection(P2)

@@ -4,7 +4,8 @@ A :class:`Scene` is a list of primitives (finite rectangles, boxes rotated about
 capped cylinders, spheres). Each carries a :class:`Texture` defined on 3D *base* coordinates,
 so the same surface point has the same colour from every viewpoint (what stereo assumes). The
 textures are band-limited sums of sinusoids squashed for contrast: blobs of a few millimetres,
-never per-pixel white noise, which breaks the Birchfield-Tomasi cost (algorithms.md §5, pitfall 4).
+never per-pixel white noise, which breaks the Birchfield-Tomasi cost
+(docs/birchfield-tomasi.md §9.1).
 Lighting is Lambertian under a light fixed in the base frame, so it does not depend on the
 viewpoint either.
 

@@ -6,5 +6,6 @@ protocol instead of running URScript. Modules: ``protocol`` (RTDE wire format), 
 (sessions and the controller clock), ``servers`` (ports, dashboard, script upload),
 ``controller`` (arm state, modes, program life cycle, faults), ``script`` (the register
 protocol), ``motion`` (moveJ/moveL trajectories), ``faults`` (fault switches), ``harness``
-(starting and steering it from a test). Run it with ``python -m rtde_emulator --help``.
+(starting and steering it from a test). Run it from the repository root with
+``python -m tests.rtde_emulator --help``.
 """

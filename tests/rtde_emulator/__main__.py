@@ -1,4 +1,4 @@
-"""Run one emulated UR controller: ``python -m rtde_emulator --host 127.0.0.7``.
+"""Run one emulated UR controller: ``python -m tests.rtde_emulator --host 127.0.0.7``.
 
 Control channel: JSON lines on stdin, one JSON reply line each on stdout. The first line
 printed is ``{"ready": true, ...}`` once the three ports listen, or ``{"ready": false,
@@ -18,11 +18,12 @@ import logging
 import sys
 
 import numpy as np
-from rtde_emulator.controller import Controller
-from rtde_emulator.faults import MoveFault, Settings
-from rtde_emulator.servers import start_servers
 
 from armstereo.kinematics import ArmModel, ready_configuration
+
+from .controller import Controller
+from .faults import MoveFault, Settings
+from .servers import start_servers
 
 DEFAULT_VERSION = "5.12.0.1101534"  # e-Series: 500 Hz, serial number and remote-control check
 

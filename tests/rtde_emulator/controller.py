@@ -13,14 +13,15 @@ import re
 import threading
 
 import numpy as np
-from rtde_emulator.faults import MoveFault, Settings
-from rtde_emulator.motion import JointPath, LinearPath, Motion
-from rtde_emulator.protocol import INPUT_TYPES, OUTPUT_TYPES, width
-from rtde_emulator.script import ControlScript
 
 from armstereo.errors import IKError
 from armstereo.kinematics import ArmModel
 from armstereo.transforms import T_from_ur_pose, ur_pose_from_T
+
+from .faults import MoveFault, Settings
+from .motion import JointPath, LinearPath, Motion
+from .protocol import INPUT_TYPES, OUTPUT_TYPES, width
+from .script import ControlScript
 
 ROBOT_MODE_RUNNING = 7
 SAFETY_NORMAL, SAFETY_PROTECTIVE_STOP = 1, 3

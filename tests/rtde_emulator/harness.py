@@ -17,7 +17,7 @@ import threading
 import time
 from pathlib import Path
 
-TESTS_DIR = Path(__file__).resolve().parents[1]
+REPO_ROOT = Path(__file__).resolve().parents[2]
 START_TIMEOUT_S = 20.0
 REQUEST_TIMEOUT_S = 10.0
 _counter = itertools.count()
@@ -40,20 +40,20 @@ def free_loopback_address() -> str:
 
 
 class EmulatedController:
-    """A running emulator process (see ``python -m rtde_emulator --help``)."""
+    """A running emulator process (see ``python -m tests.rtde_emulator --help``)."""
 
     def __init__(self, *, robot: str = "ur5e", q0=None, version: str | None = None,
                  settings: dict | None = None, attempts: int = 5):
         for _ in range(attempts):
             self.host = free_loopback_address()
-            cmd = [sys.executable, "-m", "rtde_emulator", "--host", self.host, "--robot", robot,
-                   "--settings", json.dumps(settings or {})]
+            cmd = [sys.executable, "-m", "tests.rtde_emulator", "--host", self.host,
+                   "--robot", robot, "--settings", json.dumps(settings or {})]
             if q0 is not None:
                 cmd += ["--q0", json.dumps([float(v) for v in q0])]
             if version is not None:
                 cmd += ["--version", version]
             env = dict(os.environ, PYTHONPATH=os.pathsep.join(
-                [str(TESTS_DIR)] + [p for p in [os.environ.get("PYTHONPATH")] if p]))
+                [str(REPO_ROOT)] + [p for p in [os.environ.get("PYTHONPATH")] if p]))
             self.proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                                          env=env, text=True, bufsize=1)
             try:

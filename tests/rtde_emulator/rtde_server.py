@@ -15,9 +15,9 @@ import struct
 import threading
 import time
 
-from rtde_emulator import protocol as P
-from rtde_emulator.controller import Controller
-from rtde_emulator.protocol import INPUT_TYPES, OUTPUT_TYPES, PackageReader
+from . import protocol as P
+from .controller import Controller
+from .protocol import INPUT_TYPES, OUTPUT_TYPES, PackageReader
 
 MAX_CATCH_UP_S = 0.1  # longest single step when the clock thread was held up
 

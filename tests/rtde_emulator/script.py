@@ -20,8 +20,8 @@ from typing import TYPE_CHECKING
 from armstereo.transforms import T_from_ur_pose, ur_pose_from_T
 
 if TYPE_CHECKING:
-    from rtde_emulator.controller import Controller
-    from rtde_emulator.motion import Motion
+    from .controller import Controller
+    from .motion import Motion
 
 READY, DONE = 1, 2
 COMMAND_NAMES = {1: "moveJ", 3: "moveL", 29: "setTcp", 31: "triggerProtectiveStop",

@@ -13,8 +13,8 @@ import socket
 import threading
 from collections.abc import Callable
 
-from rtde_emulator.controller import Controller
-from rtde_emulator.rtde_server import ControllerClock, InputOwners, RtdeSession
+from .controller import Controller
+from .rtde_server import ControllerClock, InputOwners, RtdeSession
 
 RTDE_PORT, DASHBOARD_PORT, SCRIPT_PORT = 30004, 29999, 30003
 SERIAL_NUMBER = "20235500001"

@@ -201,7 +201,8 @@ def mode_filter(d, n_values, half=MODE_WINDOW // 2):
 
 
 def postprocess(disp: np.ndarray, left: np.ndarray, n_values: int) -> np.ndarray:
-    """The whole §2.4 chain on (H, W) int32 disparity indices and the (H, W, C) left image.
+    """Steps 1-7 of the module doc on (H, W) int32 disparity indices and the (H, W, C) left
+    image (docs/birchfield-tomasi.md §6).
 
     Returns a new (H, W) int32 map; -1 entries are left as they are.
     """

@@ -2,14 +2,14 @@
 
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 
-SAMPLE = Path(__file__).resolve().parents[3] / "recordings" / "sample.mcap"
+from tests.support import SAMPLE_RECORDING
 
 
-@pytest.mark.parametrize("argv", [["inspect", str(SAMPLE), "--json"], ["capture", "--help"]])
+@pytest.mark.parametrize("argv", [["inspect", str(SAMPLE_RECORDING), "--json"],
+                                  ["capture", "--help"]])
 def test_closed_pipe_ends_quietly_with_exit_0(argv):
     proc = subprocess.Popen([sys.executable, "-m", "armstereo", *argv], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE)

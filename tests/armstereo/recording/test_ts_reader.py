@@ -9,7 +9,6 @@ from __future__ import annotations
 import json
 import shutil
 import subprocess
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -22,15 +21,16 @@ from mcap_protobuf.schema import register_schema
 
 from armstereo.recording import RecordingWriter
 from armstereo.recording import schemas as S
-from tests.test_recording_roundtrip import (
+from tests.support import ROOT, SAMPLE_RECORDING
+from tests.support.recordings import (
     JOINTS,
     small_intrinsics,
     synthetic_views,
     write_synthetic,
 )
 
-TS_DIR = Path(__file__).parent / "ts_reader"
-SAMPLE = Path(__file__).parent.parent / "recordings" / "sample.mcap"
+TS_DIR = ROOT / "tests" / "ts_reader"
+SAMPLE = SAMPLE_RECORDING
 ALL_TOPICS = (S.TOPIC_IMAGE, S.TOPIC_CALIBRATION, S.TOPIC_TF, S.TOPIC_JOINT_STATES,
               S.TOPIC_EVENTS, S.TOPIC_DEPTH, S.TOPIC_POINTS)
 

@@ -1,4 +1,4 @@
-"""Disparity -> depth -> points, against exact geometry (algorithms.md 1.6 and 6.1 item 6)."""
+"""Disparity -> depth -> points, against exact geometry (docs/rectification.md §9, §10.1)."""
 
 from __future__ import annotations
 

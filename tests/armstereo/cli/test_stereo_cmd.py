@@ -16,8 +16,9 @@ from armstereo.cli.main import main
 from armstereo.evaluation.disparity import evaluate_disparity
 from armstereo.io.disparity import read_disparity, write_disparity
 from armstereo.reconstruct.stereo import birchfield
+from tests.support import MIDDLEBURY
 
-TSUKUBA = Path(__file__).parent / "data" / "middlebury" / "tsukuba"
+TSUKUBA = MIDDLEBURY / "tsukuba"
 D0 = 6
 
 

@@ -7,7 +7,6 @@ import signal
 import subprocess
 import sys
 import textwrap
-from pathlib import Path
 
 import cv2
 import numpy as np
@@ -26,7 +25,8 @@ from mcap_protobuf.schema import register_schema
 
 from armstereo.errors import RecordingError
 from armstereo.recording import Recording
-from tests.test_recording_roundtrip import assert_view_matches, write_synthetic
+from tests.support import ROOT
+from tests.support.recordings import assert_view_matches, write_synthetic
 
 N_VIEWS = 5
 
@@ -197,7 +197,7 @@ def test_image_bombs_and_undecodable_images_are_recording_errors(tmp_path):
 WRITER_LOOP = textwrap.dedent("""
     import sys, time
     sys.path.insert(0, sys.argv[2])
-    from tests.test_recording_roundtrip import JOINTS, small_intrinsics, synthetic_views
+    from tests.support.recordings import JOINTS, small_intrinsics, synthetic_views
     from armstereo.recording import RecordingWriter
     intr = small_intrinsics()
     views = synthetic_views(200, intr, depth=False)
@@ -218,7 +218,7 @@ WRITER_LOOP = textwrap.dedent("""
 
 def _run_writer_until(path, views: int, sig: int) -> tuple[int, str]:
     """Start a writing process, send ``sig`` after it reports ``views`` flushed views."""
-    root = Path(__file__).resolve().parent.parent
+    root = ROOT
     proc = subprocess.Popen([sys.executable, "-c", WRITER_LOOP, str(path), str(root)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     reported = 0

@@ -22,48 +22,22 @@ from armstereo.reconstruct.rectify import rectified_geometry
 from armstereo.reconstruct.window import choose_window as plan_disparity
 from armstereo.recording import Recording, RecordingWriter
 from armstereo.transforms import invert, make_T, rot_x, rot_z
+from drivers.mock.scene import Box, Rectangle, Scene, Texture
 
 MOUNT = CameraMount.load()
 INTR = MOUNT.intrinsics
 HEIGHT = 0.55  # camera above the table (m), as in the capture's start pose
-BOX = (np.array([-0.06, -0.04, 0.0]), np.array([0.06, 0.04, 0.07]))  # on the table, metres
-TEXTURE_M = 0.8  # the texture image covers TEXTURE_M x TEXTURE_M metres around the origin
-
-
-def texture(seed: int = 0) -> np.ndarray:
-    """Band-limited random colour texture (features a few pixels wide at 0.5 m)."""
-    rng = np.random.default_rng(seed)
-    noise = rng.integers(0, 256, (256, 256, 3), dtype=np.uint8)
-    tex = cv2.resize(noise, (1024, 1024), interpolation=cv2.INTER_CUBIC)
-    return cv2.GaussianBlur(tex, (0, 0), 1.2)
-
-
-TEXTURE = texture()
+# The table (z = 0) and a 12 x 8 x 7 cm box on it, from the mock camera's ray caster.
+SCENE = Scene([Rectangle(np.eye(4), 0.6, 0.6, Texture((40, 60, 90), (200, 210, 230), seed=1),
+                         name="table"),
+               Box((0.0, 0.0, 0.035), (0.12, 0.08, 0.07), Texture((90, 30, 30), (240, 180, 170),
+                                                                    seed=2), name="box")],
+              support="table")
 
 
 def render(T_base_cam: np.ndarray, intr: Intrinsics = INTR) -> tuple[np.ndarray, np.ndarray]:
-    """Ray-cast the table (z = 0) and a box on it: BGR image and exact z-depth (m)."""
-    u, v = np.meshgrid(np.arange(intr.width, dtype=np.float64),
-                       np.arange(intr.height, dtype=np.float64))
-    rays_cam = np.stack([(u - intr.cx) / intr.fx, (v - intr.cy) / intr.fy, np.ones_like(u)], -1)
-    rays = rays_cam @ T_base_cam[:3, :3].T
-    o = T_base_cam[:3, 3]
-    t = -o[2] / rays[..., 2]  # table
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t0 = (BOX[0] - o) / rays
-        t1 = (BOX[1] - o) / rays
-    t_in = np.nanmax(np.minimum(t0, t1), axis=-1)
-    t_out = np.nanmin(np.maximum(t0, t1), axis=-1)
-    hit_box = (t_in <= t_out) & (t_in > 0)
-    t = np.where(hit_box, t_in, t)
-    X = o + rays * t[..., None]
-    # texture coordinates: the box's sides get texture through their height
-    s = (X[..., 0] + 0.37 * X[..., 2]) / TEXTURE_M + 0.5
-    r = (X[..., 1] + 0.61 * X[..., 2]) / TEXTURE_M + 0.5
-    n = TEXTURE.shape[0]
-    img = cv2.remap(TEXTURE, (s * n - 0.5).astype(np.float32), (r * n - 0.5).astype(np.float32),
-                    cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
-    return img, t.astype(np.float32)  # rays have camera z = 1: t is z-depth
+    """BGR image and exact z-depth (m) of the table scene."""
+    return SCENE.render(T_base_cam, intr)
 
 
 def camera_pose(offset_cam=(0.0, 0.0, 0.0)) -> np.ndarray:
@@ -116,11 +90,9 @@ def test_reconstruction_matches_ground_truth(recon):
     assert np.median(rel) < 0.005
     assert np.mean(rel < 0.02) > 0.9
     # points lie on the table or the box (base frame)
-    z = recon.points_base[:, 2]
-    on_table = np.abs(z) < 0.005
-    on_box = np.abs(z - BOX[1][2]) < 0.005
-    sides = (z > 0) & (z < BOX[1][2])
-    assert np.mean(on_table | on_box | sides) > 0.95 and on_box.sum() > 1000
+    distance = SCENE.truth().distance(recon.points_base)
+    assert np.mean(distance < 0.005) > 0.95
+    assert np.sum(np.abs(recon.points_base[:, 2] - 0.07) < 0.002) > 1000  # the box's top
     assert recon.points_base.dtype == np.float32 and recon.colors_bgr.dtype == np.uint8
     assert set(recon.timings_s) >= {"decode", "rectify", "match", "triangulate"}
     assert not recon.swapped and recon.left_view == 0

@@ -1,4 +1,4 @@
-"""The scanline dynamic programme (algorithms.md §2.2-2.3; oracles §6.2.2, 5, 6).
+"""The scanline dynamic programme (docs/birchfield-tomasi.md §4-5; oracles §10.2).
 
 The oracle enumerates every match sequence of tiny scanlines and prices each one from the
 model's definition (one occlusion penalty per disparity jump, a reward per match, occlusions

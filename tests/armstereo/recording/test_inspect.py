@@ -10,7 +10,7 @@ import pytest
 
 from armstereo.cli.main import main
 from armstereo.recording import RecordingWriter
-from tests.test_recording_roundtrip import (
+from tests.support.recordings import (
     JOINTS,
     small_intrinsics,
     synthetic_views,

@@ -16,11 +16,7 @@ from armstereo.transforms import (
     rotvec_to_matrix,
     ur_pose_from_T,
 )
-
-
-def random_rotation(rng):
-    q = rng.normal(size=4)
-    return matrix_from_quaternion_xyzw(q / np.linalg.norm(q))
+from tests.support.geometry import random_rotation
 
 
 def test_rotvec_round_trip_including_near_pi():

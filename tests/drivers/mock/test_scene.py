@@ -164,7 +164,7 @@ def test_texture_is_fixed_to_the_world_general_views():
 
 
 def test_texture_is_band_limited_and_contrasted():
-    # algorithms.md §5 pitfall 4: no per-pixel white noise. At 0.55 m (f = 600 px) almost no
+    # docs/birchfield-tomasi.md §9.1: no per-pixel white noise. At 0.55 m (f = 600 px) almost no
     # energy may sit above 0.25 cycles/px, and the texture must have strong contrast.
     img, _ = table_only().render(down_camera(0, 0, 0.55), VGA)
     g = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY).astype(float)

@@ -1,12 +1,11 @@
 """The public matcher ``armstereo.reconstruct.stereo.birchfield`` on scenes with known answers
-(algorithms.md §6.2.2-4, 7), its input checks, and a sanity bound on a Middlebury pair."""
+(docs/birchfield-tomasi.md §10.3), its input checks, and a sanity bound on a Middlebury pair."""
 
 from __future__ import annotations
 
 import json
 import subprocess
 import sys
-from pathlib import Path
 
 import cv2
 import numpy as np
@@ -16,23 +15,12 @@ from armstereo.errors import StereoError
 from armstereo.evaluation.disparity import evaluate_disparity
 from armstereo.io.disparity import read_disparity
 from armstereo.reconstruct.stereo import birchfield, compute_disparity, sgbm
+from tests.support import MIDDLEBURY
+from tests.support.images import texture
 
-MIDDLEBURY = Path(__file__).parent / "data" / "middlebury"
 # Measured 4.51 % (bench/results/stereo.md); the bound leaves room for tie-breaking changes,
 # not for a broken matcher.
 TSUKUBA_BAD2_BOUND = 0.06
-
-
-def texture(shape, seed, *, blur=1.5, contrast=50.0, channels=1):
-    """Band-limited random texture, uint8, grey (H, W) or BGR (H, W, 3): BT needs features of
-    2-3 px at least (white noise breaks the sampling-insensitive cost, algorithms.md §5.4)."""
-    rng = np.random.default_rng(seed)
-    out = []
-    for _ in range(channels):
-        noise = cv2.GaussianBlur(rng.standard_normal(shape).astype(np.float32), (0, 0), blur)
-        out.append(128.0 + contrast * noise / (3.0 * noise.std()))
-    img = np.clip(np.rint(np.dstack(out)), 0, 255).astype(np.uint8)
-    return img[:, :, 0] if channels == 1 else img
 
 
 def shifted_pair(d0, *, shape=(60, 120), seed=0, channels=1):
@@ -84,7 +72,7 @@ def test_fronto_parallel_box_interiors_exact_and_occlusion_strip_where_geometry_
     d_bg, d_fg, (x0, x1, y0, y1) = 3, 11, (50, 100, 20, 60)
     left, right = box_pair(d_bg, d_fg, (x0, x1, y0, y1))
     disp = birchfield(left, right, 15, subpixel="none")
-    m = 3  # boundaries may be off by a pixel or two (algorithms.md §6.2.3)
+    m = 3  # boundaries may be off by a pixel or two (docs/birchfield-tomasi.md §10.3)
     np.testing.assert_array_equal(disp[y0 + m:y1 - m, x0 + m:x1 - m], d_fg)
     np.testing.assert_array_equal(disp[y0 + m:y1 - m, d_bg + m:x0 - (d_fg - d_bg) - m], d_bg)
     np.testing.assert_array_equal(disp[y0 + m:y1 - m, x1 + m:], d_bg)

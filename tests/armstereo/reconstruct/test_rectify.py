@@ -1,4 +1,4 @@
-"""Fusiello rectification against the oracles of algorithms.md 6.1."""
+"""Fusiello rectification against the oracles of docs/rectification.md §10.1."""
 
 from __future__ import annotations
 
@@ -19,7 +19,8 @@ from armstereo.reconstruct.rectify import (
     second_view_is_left,
     warped_bounds,
 )
-from armstereo.transforms import make_T, rot_x, rot_y, rot_z, rotvec_to_matrix
+from armstereo.transforms import make_T, rot_x, rot_y, rot_z
+from tests.support.geometry import random_rotation
 
 SIZE = (640, 480)
 ROW_TOL = 1e-9  # px; float64 gives ~1e-12 (the issue asks for 1e-6)
@@ -35,11 +36,6 @@ def random_K(rng: np.random.Generator, skew: bool = True) -> np.ndarray:
     fx = rng.uniform(400, 1000)
     return np.array([[fx, rng.uniform(-5, 5) if skew else 0.0, rng.uniform(280, 360)],
                      [0, fx * rng.uniform(0.9, 1.1), rng.uniform(200, 280)], [0, 0, 1]])
-
-
-def random_rotation(rng: np.random.Generator, max_deg: float) -> np.ndarray:
-    axis = rng.normal(size=3)
-    return rotvec_to_matrix(axis / np.linalg.norm(axis) * math.radians(rng.uniform(0, max_deg)))
 
 
 def random_rig(seed: int, direction, skew: bool = True):
@@ -215,7 +211,7 @@ def test_zero_baseline_and_bad_input_are_refused():
         rectify_pair(img, img, K, None, 2 * np.eye(4), K, None, T2)
 
 
-# Example PPMs circulating with reproductions of rectify.m (algorithms.md 1.8).
+# Example PPMs circulating with reproductions of rectify.m (docs/rectification.md §10.2).
 PO1 = np.array([[976.5, 53.82, -239.8, 387500], [98.49, 933.3, 157.4, 242800],
                 [.579, .1108, .8077, 1118]])
 PO2 = np.array([[976.7, 53.76, -240, 40030], [98.68, 931.0, 156.71, 251700],
@@ -223,7 +219,7 @@ PO2 = np.array([[976.7, 53.76, -240, 40030], [98.68, 931.0, 156.71, 251700],
 
 
 def test_regression_numbers_of_the_example_ppms():
-    # Paper settings (averaged A, fy kept, no centering): the numbers listed in 1.8.
+    # Paper settings (averaged A, fy kept, no centering): docs/rectification.md §10.2.
     r = fusiello(PO1, PO2, square_pixels=False)
     A, Rn, c1 = factor_projection(r.P1)
     c2 = factor_projection(r.P2)[2]

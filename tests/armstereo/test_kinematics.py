@@ -19,7 +19,7 @@ from robot_models import MODELS_DIR
 
 log = logging.getLogger(__name__)
 
-# UR's published standard DH lengths (m): d1, a2, a3, d4, d5, d6 (robot-stack.md section 4.1),
+# UR's published standard DH lengths (m): d1, a2, a3, d4, d5, d6 (docs/ur-robots.md §2),
 # typed in again here so the test does not share a table with the URDF generator.
 DH = {
     "ur3e": (0.15185, -0.24355, -0.2132, 0.13105, 0.08535, 0.0921),

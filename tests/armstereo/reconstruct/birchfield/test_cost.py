@@ -1,4 +1,4 @@
-"""Birchfield-Tomasi sampling-insensitive dissimilarity (algorithms.md §2.1, oracles §6.2.1)."""
+"""Birchfield-Tomasi sampling-insensitive dissimilarity (docs/birchfield-tomasi.md §3, §10.1)."""
 
 from __future__ import annotations
 

@@ -4,15 +4,15 @@ reads cleanly and keeps the format's promises: FK poses, mount, calibration, gro
 from __future__ import annotations
 
 import tomllib
-from pathlib import Path
 
 import numpy as np
 
 from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
 from armstereo.recording import Recording
+from tests.support import SAMPLE_RECORDING
 
-SAMPLE = Path(__file__).parent.parent / "recordings" / "sample.mcap"
+SAMPLE = SAMPLE_RECORDING
 
 
 def test_sample_recording_reads_cleanly_and_keeps_the_format():
