@@ -19,7 +19,7 @@ from armstereo.errors import ConfigError
 
 
 @dataclass(frozen=True)
-class BaselinePlan:
+class BaselineRecommendation:
     """A recommended baseline and what it gives. Lengths in metres, disparities in pixels."""
 
     baseline_m: float
@@ -52,9 +52,9 @@ def overlap(z: float, focal_px: float, baseline_m: float, extent_px: int) -> flo
     return max(0.0, 1.0 - focal_px * baseline_m / (z * extent_px))
 
 
-def plan_baseline(near: float, far: float, depth_accuracy: float, *, focal_px: float,
+def recommend_baseline(near: float, far: float, depth_accuracy: float, *, focal_px: float,
                   extent_px: int, max_disparity: int = 64, disparity_precision: float = 0.25,
-                  min_overlap: float = 0.6) -> BaselinePlan:
+                  min_overlap: float = 0.6) -> BaselineRecommendation:
     """Recommend the shortest baseline that reaches ``depth_accuracy`` (m) at ``far``.
 
     The shortest admissible baseline is chosen because it maximises overlap and keeps the two
@@ -73,7 +73,7 @@ def plan_baseline(near: float, far: float, depth_accuracy: float, *, focal_px: f
             f">= {b_min:.3f} m but the {limited_by} allows <= {b_max:.3f} m; relax "
             "--depth-accuracy, narrow --near/--far or raise --max-disparity")
     b = min(math.ceil(b_min * 1000.0) / 1000.0, b_max)  # round up to whole millimetres
-    return BaselinePlan(
+    return BaselineRecommendation(
         baseline_m=b, min_baseline_m=b_min, max_baseline_m=b_max, limited_by=limited_by,
         near_m=near, far_m=far, focal_px=focal_px,
         disparity_near_px=focal_px * b / near, disparity_far_px=focal_px * b / far,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from armstereo.apps.baseline import plan_baseline
+from armstereo.apps.baseline import recommend_baseline
 from armstereo.mount import CameraMount
 
 
@@ -34,7 +34,7 @@ def run(args: argparse.Namespace) -> int:
     intr = CameraMount.load(args.mount).intrinsics
     focal = intr.fx if args.direction == "x" else intr.fy
     extent = intr.width if args.direction == "x" else intr.height
-    plan = plan_baseline(args.near, args.far, args.depth_accuracy, focal_px=focal,
+    plan = recommend_baseline(args.near, args.far, args.depth_accuracy, focal_px=focal,
                          extent_px=extent, max_disparity=args.max_disparity,
                          disparity_precision=args.disparity_precision,
                          min_overlap=args.min_overlap)

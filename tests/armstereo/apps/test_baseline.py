@@ -4,7 +4,7 @@ import json
 
 import pytest
 
-from armstereo.apps.baseline import depth_error, overlap, plan_baseline
+from armstereo.apps.baseline import depth_error, overlap, recommend_baseline
 from armstereo.cli.main import main
 from armstereo.errors import ConfigError
 
@@ -18,7 +18,7 @@ def test_depth_error_formula_hand_case():
 def test_plan_hand_computed():
     # far = 2 m, dd = 0.25 px, f = 600 px, accuracy 5 mm -> b_min = 4 * 0.25 / 3 = 0.3333 m
     # budget: 256 / (600 * (1/1 - 1/2)) = 0.8533 m; overlap at 1 m: 0.4 * 640 / 600 = 0.4267 m
-    p = plan_baseline(1.0, 2.0, 0.005, focal_px=600, extent_px=640, max_disparity=256)
+    p = recommend_baseline(1.0, 2.0, 0.005, focal_px=600, extent_px=640, max_disparity=256)
     assert p.min_baseline_m == pytest.approx(1 / 3)
     assert p.max_baseline_m == pytest.approx(0.4 * 640 / 600)
     assert p.limited_by == "overlap"
@@ -31,9 +31,9 @@ def test_plan_hand_computed():
 
 def test_plan_infeasible_names_the_conflict():
     with pytest.raises(ConfigError, match="disparity budget"):
-        plan_baseline(0.5, 2.0, 0.0005, focal_px=600, extent_px=640, max_disparity=64)
+        recommend_baseline(0.5, 2.0, 0.0005, focal_px=600, extent_px=640, max_disparity=64)
     with pytest.raises(ConfigError, match="near"):
-        plan_baseline(2.0, 1.0, 0.01, focal_px=600, extent_px=640)
+        recommend_baseline(2.0, 1.0, 0.01, focal_px=600, extent_px=640)
 
 
 def test_plan_cli_json_and_text(capsys):

@@ -29,9 +29,11 @@ def test_demo_writes_every_file_and_a_complete_report(demo_dir):
     acc = report["accuracy"]
     for key in ("median_abs_rel_depth_error", "within_1pct", "density"):
         assert isinstance(acc[key], float)
-    # The targets on the default scene.
-    assert acc["median_abs_rel_depth_error"] <= 0.005
-    assert acc["density"] >= 0.90
+    # Regression bounds near what the demo measures (0.015 % median, 96.5 % within 1 %,
+    # density 99.1 %); the product's targets are 0.5 % and 90 %.
+    assert acc["median_abs_rel_depth_error"] <= 0.0003
+    assert acc["within_1pct"] >= 0.95
+    assert acc["density"] >= 0.98
     for name in ("disparity.png", "rectified.png", "depth_error.png"):
         img = cv2.imread(str(demo_dir / name))
         assert img is not None and img.shape[0] > 100
