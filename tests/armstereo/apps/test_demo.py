@@ -14,6 +14,9 @@ from armstereo.io.ply import read_ply
 from armstereo.reconstruct.pipeline import reconstruct_pair
 from armstereo.recording import Recording
 
+# The whole demo (capture, match, write) once per module: about 5 s.
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def demo_dir(tmp_path_factory):

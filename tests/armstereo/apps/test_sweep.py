@@ -12,6 +12,7 @@ from armstereo.cli.main import main
 from armstereo.errors import ConfigError
 
 
+@pytest.mark.slow  # seven captures and reconstructions: about 13 s
 def test_sweep_on_the_mock_shows_the_expected_shape(tmp_path, capsys):
     out = tmp_path / "sweep"
     assert main(["sweep", "--baselines", "0.025,0.1", "--distances", "0.8,2.0",

@@ -29,6 +29,9 @@ from tests.support.recordings import (
     write_synthetic,
 )
 
+# node + npm install on first use.
+pytestmark = pytest.mark.slow
+
 TS_DIR = ROOT / "tests" / "ts_reader"
 SAMPLE = SAMPLE_RECORDING
 ALL_TOPICS = (S.TOPIC_IMAGE, S.TOPIC_CALIBRATION, S.TOPIC_TF, S.TOPIC_JOINT_STATES,

@@ -35,6 +35,9 @@ from drivers.ur.channel import ControlChannel
 from drivers.ur.probe import rtde_handshake
 from tests.rtde_emulator.harness import EmulatedController, free_loopback_address
 
+# Real-time controller emulation: about 45 s for the file.
+pytestmark = pytest.mark.slow
+
 BASELINE_TOL_M = 0.0005
 FAST = ["--speed", "0.25", "--acceleration", "1.0", "--settle", "0.1"]  # a 0.1 m move: 0.65 s
 FAIL_FAST_S = 5.0  # a refused or silent controller must be reported within seconds
