@@ -37,6 +37,7 @@ from armstereo.errors import (
     ProtectiveStop,
 )
 from armstereo.transforms import as_rigid, make_T, matrix_to_rotvec, rotvec_to_matrix
+from armstereo.validate import positive
 from drivers.mock.faults import FAULT_FRACTION, Fault, FaultPlan
 
 if TYPE_CHECKING:
@@ -351,9 +352,4 @@ def _check_pose(T, name: str) -> np.ndarray:
 
 
 def _check_positive(value: float, what: str, limit: float, unit: str, name: str) -> None:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        v = math.nan
-    if not (math.isfinite(v) and 0 < v <= limit):
-        raise ConfigError(f"{name}: {what} must be in (0, {limit:g}] {unit}, got {value!r}")
+    positive(value, f"{name}: {what}", unit, cap=None if math.isinf(limit) else limit)

@@ -25,6 +25,7 @@ from armstereo.camera_model import Intrinsics
 from armstereo.clock import Clock, RealClock
 from armstereo.devices import Arm, Camera, Frame
 from armstereo.errors import CameraTimeout, ConfigError, ConnectionFailed, HardwareError
+from armstereo.validate import positive
 from drivers.worker import DeadlineMissed, SerialWorker
 
 if TYPE_CHECKING:
@@ -71,7 +72,7 @@ class OpenCVCamera(Camera):
         if not isinstance(device, int | str) or (isinstance(device, str) and not device.strip()):
             raise ConfigError(f"camera device must be an index, a path or a pipeline, "
                               f"got {device!r}")
-        _check_positive("camera timeout", timeout)
+        positive(timeout, "camera timeout", "s")
         if not isinstance(flush_frames, int) or flush_frames < 0:
             raise ConfigError(f"flush_frames must be an integer >= 0, got {flush_frames!r}")
         self.device = device
@@ -157,7 +158,7 @@ class OpenCVCamera(Camera):
         Raises CameraTimeout naming the device after ``timeout`` s (default: the constructor's)."""
         self._require_connected()
         timeout = self.timeout if timeout is None else timeout
-        _check_positive("grab timeout", timeout)
+        positive(timeout, "grab timeout", "s")
         got = self._read(self.flush_frames, timeout)
         if got is None:
             raise CameraTimeout(f"camera {self.device!r} delivered no frame within {timeout:g} s")
@@ -265,12 +266,3 @@ def _resolve_backend(backend: str | int | None, device: int | str) -> int:
 def _backend_label(api: int) -> str:
     names = {v: k for k, v in BACKENDS.items()}
     return f"backend {names.get(api, api)}"
-
-
-def _check_positive(what: str, value: float) -> None:
-    try:
-        ok = bool(np.isfinite(float(value)) and float(value) > 0)
-    except (TypeError, ValueError):
-        ok = False
-    if not ok:
-        raise ConfigError(f"{what} must be positive seconds, got {value!r}")

@@ -49,6 +49,7 @@ from armstereo.errors import (
     ProtectiveStop,
 )
 from armstereo.transforms import T_from_ur_pose, as_rigid, matrix_to_rotvec, ur_pose_from_T
+from armstereo.validate import positive
 from drivers.ur.channel import ControlChannel
 from drivers.ur.diagnose import connection_failed
 from drivers.ur.probe import DASHBOARD_PORT, ControllerInfo, check_controller, check_port
@@ -612,23 +613,11 @@ def _check_host(host) -> str:
 
 
 def _check_cap(what: str, value: float, cap: float, unit: str) -> None:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        v = float("nan")
-    if not (np.isfinite(v) and v > 0):
-        raise ConfigError(f"{what} must be a positive number of {unit}, got {value!r}")
-    if v > cap:
-        raise ConfigError(f"{what} {v:g} {unit} exceeds the cap of {cap:g} {unit}")
+    positive(value, what, unit, cap=cap)
 
 
 def _check_timeout(timeout: float) -> None:
-    try:
-        ok = bool(np.isfinite(float(timeout)) and float(timeout) > 0)
-    except (TypeError, ValueError):
-        ok = False
-    if not ok:
-        raise ConfigError(f"timeout must be positive seconds, got {timeout!r}")
+    positive(timeout, "timeout", "s")
 
 
 def _rigid(T) -> np.ndarray:
