@@ -91,13 +91,13 @@ def dh_from_axes(axes: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
 
 def _closest_parameters(p: np.ndarray, u: np.ndarray, r: np.ndarray,
                         w: np.ndarray) -> tuple[float, float]:
-    """Parameters s, t of the closest points p + s u and r + t w of two skew lines."""
-    b = u @ w
+    """Parameters s, t of the closest points p + s u and r + t w of two skew lines (unit u,
+    w), in the cross-product form: for the nearly parallel axes of a UR arm the dot-product
+    form (dividing by 1 - cos^2) would lose most digits to cancellation."""
+    n = np.cross(u, w)
+    den = n @ n
     delta = r - p
-    den = 1.0 - b * b
-    s = (delta @ u - b * (delta @ w)) / den
-    t = (b * (delta @ u) - delta @ w) / den
-    return float(s), float(t)
+    return float(np.cross(delta, w) @ n / den), float(np.cross(delta, u) @ n / den)
 
 
 def _unit_or(v: np.ndarray, fallback: np.ndarray) -> np.ndarray:
