@@ -17,7 +17,6 @@ from typing import NamedTuple
 
 import numpy as np
 import pytest
-from rtde_emulator.harness import EmulatedController, free_loopback_address
 
 from armstereo.capture.backends import mock_start_configuration
 from armstereo.cli import capture_cmd
@@ -34,6 +33,7 @@ from drivers.base import ArmState
 from drivers.ur.arm import URArm
 from drivers.ur.channel import ControlChannel
 from drivers.ur.probe import rtde_handshake
+from tests.rtde_emulator.harness import EmulatedController, free_loopback_address
 
 BASELINE_TOL_M = 0.0005
 FAST = ["--speed", "0.25", "--acceleration", "1.0", "--settle", "0.1"]  # a 0.1 m move: 0.65 s
