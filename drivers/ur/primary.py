@@ -240,7 +240,7 @@ def _nominal(model: str | None, reading: PrimaryReading | None,
              warnings: list[str]) -> ArmKinematics:
     name = model or "ur5e"
     note = (f"using the NOMINAL {name} kinematics: camera poses may be off by millimetres "
-            f"(read the arm's own with armstereo robot-info)")
+            f"from where the arm really is")
     return ArmKinematics(nominal_table(name), reading, tuple(warnings) + (note,))
 
 
