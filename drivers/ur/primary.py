@@ -173,8 +173,8 @@ def _take_message(reading: PrimaryReading, kind: int, body: bytes) -> bool:
     reading.short_kinematics += state.short_kinematics
     for note in state.notes:
         log.debug("%s:%s: %s", reading.host, reading.port, note)
-    if not state.valid:
-        reading.warnings.extend(state.notes)
+    if not state.valid:  # the same damage every 100 ms is one warning, not twenty
+        reading.warnings.extend(n for n in state.notes if n not in reading.warnings)
         return False
     if state.kinematics is None:
         return False
