@@ -160,3 +160,14 @@ def _make_config(backend: Backend, values: dict[str, Any]) -> Any:
         raise ConfigError(f"the {backend.name} {backend.kind} has no option "
                           f"{', '.join(unknown)} (it has: {', '.join(sorted(known))})")
     return cls(**values)
+
+
+# -- what a UR controller knows about itself ---------------------------------------------------
+
+
+def read_ur_kinematics(host: str, model: str | None = None, **kwargs: Any):
+    """The controller's calibrated DH table from its read-only primary interface, or the
+    nominal table with warnings (``drivers.ur.primary.ArmKinematics``); see
+    :func:`drivers.ur.primary.read_arm_kinematics` for ``port`` and ``timeout``."""
+    primary = importlib.import_module("drivers.ur.primary")
+    return primary.read_arm_kinematics(host, model, **kwargs)

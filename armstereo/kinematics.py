@@ -256,6 +256,46 @@ class ArmModel:
             raise ConfigError(f"{what} has non-finite joint angles: {arr.tolist()}")
         return arr.copy()
 
+    # ---- models built from a DH table (e.g. the controller's calibrated one) ----------------
+    # The DHTable a model was built from by from_dh; None for a model loaded from a URDF.
+    dh = None
+
+    @classmethod
+    def from_dh(cls, table, mount: CameraMount | str | Path | None = None) -> ArmModel:
+        """A model whose FK is ``table``'s DH FK (an ``armstereo.robot.dh.DHTable``, typically
+        the controller's calibrated table), with the joint limits of ``table.model``'s URDF.
+
+        ``urdf_path`` is None and ``urdf_sha256`` holds ``table.sha256`` (what identifies these
+        kinematics); ``dh`` is the table. ``mount`` as in :meth:`load`. Raises ConfigError for a
+        table of an unknown model or a bad mount.
+        """
+        from armstereo.robot.pinocchio_dh import build_model
+
+        if mount is not None and not isinstance(mount, CameraMount):
+            mount = CameraMount.load(mount)
+        self = cls.__new__(cls)
+        self.name, self.urdf_path, self.urdf_sha256 = table.model, None, table.sha256
+        self.mount, self.dh = mount, table
+        self._setup_from_model(build_model(table))
+        return self
+
+    def _setup_from_model(self, model: pin.Model) -> None:
+        """The part of __init__ after the Pinocchio model exists (same steps, same order)."""
+        self._model = model
+        self._data = self._model.createData()
+        self._flange_id = self._model.getFrameId(FLANGE_FRAME)
+        base_id = self._model.getFrameId(BASE_FRAME)
+        pin.framesForwardKinematics(self._model, self._data, pin.neutral(self._model))
+        self._world_M_base = self._data.oMf[base_id].copy()
+        self._base_M_world = self._world_M_base.inverse()
+        R = self._base_M_world.rotation
+        self._twist_base_world = np.block([[R, np.zeros((3, 3))], [np.zeros((3, 3)), R]])
+        self.joint_names = tuple(self._model.names[1:])
+        self.lower = _frozen(self._model.lowerPositionLimit)
+        self.upper = _frozen(self._model.upperPositionLimit)
+        self.velocity_limits = _frozen(self._model.velocityLimit)
+        self._reach = _reach_bound(self._model, self._flange_id)
+
 
 class _Reach(NamedTuple):
     center: np.ndarray  # shoulder point in the URDF root frame (m)

@@ -15,7 +15,8 @@ import sys
 from armstereo import __version__
 from armstereo.errors import ArmstereoError
 
-SUBCOMMANDS = ["demo", "capture", "inspect", "reconstruct", "stereo", "eval", "plan", "sweep"]
+SUBCOMMANDS = ["demo", "capture", "inspect", "reconstruct", "stereo", "eval", "plan", "sweep",
+               "robot_info"]
 
 log = logging.getLogger("armstereo")
 

@@ -5,7 +5,8 @@ address of its own, in a separate process, and plays ur_rtde's control-script re
 protocol instead of running URScript. Modules: ``protocol`` (RTDE wire format), ``rtde_server``
 (sessions and the controller clock), ``servers`` (ports, dashboard, script upload),
 ``controller`` (arm state, modes, program life cycle, faults), ``script`` (the register
-protocol), ``motion`` (moveJ/moveL trajectories), ``faults`` (fault switches), ``harness``
+protocol), ``motion`` (moveJ/moveL trajectories), ``faults`` (fault switches),
+``primary_server`` (the read-only primary/secondary state stream), ``harness``
 (starting and steering it from a test). Run it from the repository root with
 ``python -m tests.rtde_emulator --help``.
 """

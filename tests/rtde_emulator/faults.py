@@ -14,7 +14,8 @@ Settings: ``start_delay_s`` (a controller slow to start streaming: RTDE data beg
 after the client's start request), ``unlock_delay_s`` (the dashboard refuses to unlock a
 protective stop this soon after it; UR's rule is 5 s), ``remote_control`` (what ``is in remote
 control`` answers on e-Series), ``robot_mode`` (7 RUNNING; e.g. 3 POWER_OFF or 5 IDLE, brakes
-on: no program starts).
+on: no program starts), ``primary_fault`` (how the primary stream misbehaves for new
+connections; see ``primary_server``).
 """
 
 from __future__ import annotations
@@ -49,6 +50,7 @@ class Settings:
     unlock_delay_s: float = 5.0
     remote_control: bool = True
     robot_mode: int = 7
+    primary_fault: str = ""
 
     def update(self, values: dict) -> None:
         """Set the named fields; ValueError for an unknown one."""

@@ -43,7 +43,8 @@ class EmulatedController:
     """A running emulator process (see ``python -m tests.rtde_emulator --help``)."""
 
     def __init__(self, *, robot: str = "ur5e", q0=None, version: str | None = None,
-                 settings: dict | None = None, attempts: int = 5):
+                 settings: dict | None = None, kinematics: str | None = None,
+                 attempts: int = 5):
         for _ in range(attempts):
             self.host = free_loopback_address()
             cmd = [sys.executable, "-m", "tests.rtde_emulator", "--host", self.host,
@@ -52,6 +53,8 @@ class EmulatedController:
                 cmd += ["--q0", json.dumps([float(v) for v in q0])]
             if version is not None:
                 cmd += ["--version", version]
+            if kinematics is not None:
+                cmd += ["--kinematics", kinematics]
             env = dict(os.environ, PYTHONPATH=os.pathsep.join(
                 [str(REPO_ROOT)] + [p for p in [os.environ.get("PYTHONPATH")] if p]))
             self.proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
