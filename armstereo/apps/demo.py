@@ -22,6 +22,7 @@ from armstereo.capture.run import model_metadata
 from armstereo.capture.session import capture_to_file
 from armstereo.errors import RecordingError
 from armstereo.evaluation.depth import DepthAccuracy, score_depth, visible_mask
+from armstereo.io.files import write_text_atomic
 from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
 from armstereo.reconstruct.outputs import write_outputs
@@ -58,7 +59,6 @@ def run_demo(out_dir: Path, options: DemoOptions = DemoOptions(),
              progress: Callable[[str], None] = lambda s: None) -> dict:
     """Capture, reconstruct, write the demo files into ``out_dir`` and return the report."""
     settings = demo_settings(options)
-    out_dir.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
     timings: dict[str, float] = {}
 
@@ -97,7 +97,7 @@ def run_demo(out_dir: Path, options: DemoOptions = DemoOptions(),
     timings["score"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_start
     report = _report(recon, accuracy, timings, options)
-    (out_dir / "report.json").write_text(json.dumps(report, indent=2) + "\n")
+    write_text_atomic(out_dir / "report.json", json.dumps(report, indent=2) + "\n")
     return report
 
 

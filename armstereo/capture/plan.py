@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from armstereo import validate
 from armstereo.devices import (
     MAX_JOINT_ACCELERATION,
     MAX_JOINT_SPEED,
@@ -32,6 +33,7 @@ NAMED_DIRECTIONS = {
 }
 MAX_BASELINE_M = 0.5
 MAX_PAIRS = 50
+MAX_SETTLE_S = 60.0  # longer than any arm needs to come to rest; larger values are typos
 # Rectification (Fusiello) degenerates when the camera moves along its optical axis.
 MIN_ANGLE_TO_OPTICAL_AXIS_DEG = 30.0
 # A jump larger than this between IK samples 5 mm apart means a branch flip, not a smooth path.
@@ -184,12 +186,16 @@ def plan_capture(model: ArmModel, q_start: np.ndarray, settings: CaptureSettings
 
 def validate_settings(s: CaptureSettings) -> None:
     """Raise ConfigError naming the option if ``s`` is out of range (before anything moves)."""
-    if not (0 < s.baseline <= MAX_BASELINE_M):
-        raise ConfigError(f"--baseline must be in (0, {MAX_BASELINE_M}] m, got {s.baseline}")
-    if not (1 <= s.pairs <= MAX_PAIRS):
-        raise ConfigError(f"--pairs must be in 1..{MAX_PAIRS}, got {s.pairs}")
-    if s.settle_s < 0:
-        raise ConfigError(f"--settle must be >= 0 s, got {s.settle_s}")
+    validate.positive(s.baseline, "--baseline", "m", cap=MAX_BASELINE_M)
+    validate.whole(s.pairs, "--pairs", 1, MAX_PAIRS)
+    validate.non_negative(s.settle_s, "--settle", "s", cap=MAX_SETTLE_S)
+    # Speeds must be numbers > 0 here (durations divide by them); their caps are a pre-flight
+    # check, so a dry run shows them beside the others.
+    lim = s.limits
+    validate.positive(lim.linear_speed, "--speed", "m/s")
+    validate.positive(lim.linear_acceleration, "--acceleration", "m/s^2")
+    validate.positive(lim.joint_speed, "joint speed", "rad/s")
+    validate.positive(lim.joint_acceleration, "joint acceleration", "rad/s^2")
 
 
 def _translated(T: np.ndarray, delta: np.ndarray) -> np.ndarray:

@@ -46,18 +46,30 @@ def capture_to_file(arm: Arm, camera: Camera, model: ArmModel, plan: CapturePlan
     happens (even SIGTERM). Errors name how many views were kept."""
     from armstereo.recording import RecordingWriter
 
+    plan.require_ok()  # before the file exists: a refused plan leaves nothing behind
     result = CaptureResult()
     metadata = {**camera.recording_metadata(), **metadata}
-    with sigterm_as_interrupt(), RecordingWriter(out, metadata=metadata,
-                                                 image_format=image_format) as writer:
-        try:
-            run_capture(arm, camera, model, plan, writer, progress=progress, result=result)
-        except ArmstereoError as err:
-            err.args = (f"{err}; {result.views} view(s) kept in {out}",)
-            raise
-        except KeyboardInterrupt:
-            raise UserAbort(f"interrupted; {result.views} view(s) kept in {out}") from None
+    writer = RecordingWriter(out, metadata=metadata, image_format=image_format)
+    try:
+        with sigterm_as_interrupt(), writer:
+            try:
+                run_capture(arm, camera, model, plan, writer, progress=progress, result=result)
+            except ArmstereoError as err:
+                err.args = (f"{err}; {_kept(result, out)}",)
+                raise
+            except KeyboardInterrupt:
+                raise UserAbort(f"interrupted; {_kept(result, out)}") from None
+    except BaseException:
+        if result.views == 0:  # ours and empty: no 0-view recording left behind
+            Path(out).unlink(missing_ok=True)
+        raise
     return result
+
+
+def _kept(result: CaptureResult, out: Path) -> str:
+    if result.views == 0:
+        return f"no view was recorded, {out} not kept"
+    return f"{result.views} view(s) kept in {out}"
 
 
 @contextlib.contextmanager

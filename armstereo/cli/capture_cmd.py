@@ -9,11 +9,12 @@ from pathlib import Path
 
 from armstereo import backends
 from armstereo.capture import CaptureSettings, Workspace, plan_capture
-from armstereo.capture.plan import parse_direction
+from armstereo.capture.plan import MAX_BASELINE_M, MAX_PAIRS, MAX_SETTLE_S, parse_direction
 from armstereo.capture.run import CaptureResult, model_metadata
 from armstereo.capture.session import capture_to_file, confirm_live_motion
+from armstereo.cli import args as args_
 from armstereo.cli.backend_flags import BackendChoice, add_backend_flags, backend_choice
-from armstereo.devices import MotionLimits
+from armstereo.devices import MAX_LINEAR_ACCELERATION, MAX_LINEAR_SPEED, MotionLimits
 from armstereo.errors import ConfigError
 from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
@@ -27,24 +28,37 @@ def register(sub: argparse._SubParsersAction) -> None:
                        "settle, grab, read the actual joints; between views move the camera by "
                        "the baseline along a camera-frame direction; return to the start.")
     add_backend_flags(p)
-    p.add_argument("--baseline", type=float, default=0.10, help="camera move per pair (m)")
+    p.add_argument("--baseline", type=args_.positive("m", cap=MAX_BASELINE_M), default=0.10,
+                   help=f"camera move per pair (m, up to {MAX_BASELINE_M})")
     p.add_argument("--direction", default="x",
                    help="camera-frame direction: x, -x, y, -y or dx,dy,dz (default x)")
-    p.add_argument("--pairs", type=int, default=1, help="number of pairs (pairs+1 views)")
+    p.add_argument("--pairs", type=args_.whole(1, MAX_PAIRS), default=1,
+                   help=f"number of pairs (pairs+1 views, up to {MAX_PAIRS})")
     p.add_argument("--out", required=True, help="output recording (.mcap)")
     p.add_argument("--force", action="store_true", help="overwrite --out if it exists")
     p.add_argument("--dry-run", action="store_true", help="print the plan and move nothing")
     p.add_argument("--yes", action="store_true", help="allow live motion without asking")
-    p.add_argument("--speed", type=float, default=MotionLimits.linear_speed,
-                   help=f"linear speed cap (m/s, default {MotionLimits.linear_speed})")
-    p.add_argument("--acceleration", type=float, default=MotionLimits.linear_acceleration,
-                   help=f"linear acceleration (m/s^2, default {MotionLimits.linear_acceleration})")
-    p.add_argument("--settle", type=float, default=0.5, help="settle time before a shot (s)")
+    add_motion_flags(p)
     p.add_argument("--workspace", default=None,
                    help="base-frame box xmin,xmax,ymin,ymax,zmin,zmax (m) the path must stay in")
     p.add_argument("--image-format", choices=["png", "jpeg"], default="png",
                    help="image compression in the recording (default png, lossless)")
     p.set_defaults(func=run)
+
+
+def add_motion_flags(p: argparse.ArgumentParser) -> None:
+    """--speed, --acceleration and --settle, checked against the hard caps as they are parsed
+    (shared by capture and sweep)."""
+    p.add_argument("--speed", type=args_.positive("m/s", cap=MAX_LINEAR_SPEED),
+                   default=MotionLimits.linear_speed,
+                   help=f"linear speed (m/s, default {MotionLimits.linear_speed}, at most "
+                   f"{MAX_LINEAR_SPEED})")
+    p.add_argument("--acceleration", type=args_.positive("m/s^2", cap=MAX_LINEAR_ACCELERATION),
+                   default=MotionLimits.linear_acceleration,
+                   help=f"linear acceleration (m/s^2, default {MotionLimits.linear_acceleration}"
+                   f", at most {MAX_LINEAR_ACCELERATION})")
+    p.add_argument("--settle", type=args_.non_negative("s", cap=MAX_SETTLE_S), default=0.5,
+                   help=f"settle time before a shot (s, default 0.5, at most {MAX_SETTLE_S:g})")
 
 
 def run(args: argparse.Namespace) -> int:

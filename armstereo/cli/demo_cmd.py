@@ -3,12 +3,17 @@
 from __future__ import annotations
 
 import argparse
-import sys
+import logging
 import time
 from pathlib import Path
 
 from armstereo.apps.demo import DEFAULT_BASELINE_M, DEMO_FILES, DemoOptions, demo_settings, run_demo
+from armstereo.capture.plan import MAX_BASELINE_M
+from armstereo.cli import args as args_
 from armstereo.errors import ConfigError
+from armstereo.io.files import output_folder
+
+log = logging.getLogger("armstereo.demo")
 
 TARGET_MEDIAN_REL_ERROR = 0.005
 TARGET_DENSITY = 0.90
@@ -20,12 +25,14 @@ def register(sub: argparse._SubParsersAction) -> None:
                        "reconstruct it and score the depth against the exact ground truth.")
     p.add_argument("--out", default=None,
                    help="output folder (default: a fresh ./armstereo-demo-<time> folder)")
-    p.add_argument("--baseline", type=float, default=DEFAULT_BASELINE_M,
+    p.add_argument("--baseline", type=args_.positive("m", cap=MAX_BASELINE_M),
+                   default=DEFAULT_BASELINE_M,
                    help=f"camera move between the two views (m, default {DEFAULT_BASELINE_M})")
     p.add_argument("--method", choices=["birchfield", "sgbm"], default="birchfield",
                    help="stereo matcher (default birchfield)")
     p.add_argument("--robot", default="ur5e", help="mock arm model (default ur5e)")
-    p.add_argument("--seed", type=int, default=0, help="scene and noise seed")
+    p.add_argument("--seed", type=args_.whole(0, 2**32 - 1), default=0,
+                   help="scene and noise seed")
     p.set_defaults(func=run)
 
 
@@ -35,14 +42,15 @@ def run(args: argparse.Namespace) -> int:
     demo_settings(options)  # bad options fail here, before a folder is made
     out = _out_dir(args.out)
     progress(f"armstereo demo -> {out}/")
-    report = run_demo(out, options, progress)
+    with output_folder(out):  # a run that fails leaves no empty folder behind
+        report = run_demo(out, options, progress)
     _print_summary(report, out)
     return 0
 
 
 def progress(text: str) -> None:
-    """Progress goes to stderr so stdout carries only the summary."""
-    print(text, file=sys.stderr, flush=True)
+    """Progress is logged to stderr (quiet with -q); stdout carries only the summary."""
+    log.info("%s", text)
 
 
 def _out_dir(text: str | None) -> Path:

@@ -9,6 +9,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from armstereo.cli import args as args_
 from armstereo.errors import ConfigError
 from armstereo.evaluation.disparity import evaluate_disparity
 from armstereo.io.disparity import read_disparity
@@ -25,18 +26,20 @@ def register(sub: argparse._SubParsersAction) -> None:
         "error exceeds 1/2 px or that have no disparity; average error over the pixels that "
         "have one; invalid: share without a disparity. Files: .pfm as stored; .png divided by "
         "its scale, 0 = unknown (16-bit: 256 unless told; 8-bit: 1 unless told).")
-    p.add_argument("disp", metavar="DISP", help="disparity to score (.pfm or .png)")
-    p.add_argument("gt", metavar="GT", help="ground-truth disparity (.pfm or .png)")
-    p.add_argument("--mask", metavar="MASK", default=None,
+    p.add_argument("disp", metavar="DISP", type=args_.input_file,
+                   help="disparity to score (.pfm or .png)")
+    p.add_argument("gt", metavar="GT", type=args_.input_file,
+                   help="ground-truth disparity (.pfm or .png)")
+    p.add_argument("--mask", metavar="MASK", default=None, type=args_.input_file,
                    help="image; only its white pixels (> 128) are scored, as in Middlebury's "
                    "masks (e.g. nonocc.png; grey 128 marks occluded pixels there)")
-    p.add_argument("--gt-scale", type=float, default=None, metavar="S",
+    p.add_argument("--gt-scale", type=args_.positive("per px"), default=None, metavar="S",
                    help="GT PNG value per pixel of disparity (Middlebury v2: Tsukuba 16, "
                    "Venus 8, Teddy and Cones 4). Default: 'gt_scale' of a meta.json beside "
                    "GT that names it, else the PNG default above")
-    p.add_argument("--disp-scale", type=float, default=None, metavar="S",
+    p.add_argument("--disp-scale", type=args_.positive("per px"), default=None, metavar="S",
                    help="DISP PNG value per pixel of disparity (default as above)")
-    p.add_argument("--exclude-left", type=int, default=0, metavar="N",
+    p.add_argument("--exclude-left", type=args_.whole(0, 100_000), default=0, metavar="N",
                    help="leave out the left band of N columns (where a matcher searching up "
                    "to N px has no partner); default 0")
     p.add_argument("--json", action="store_true", help="print the scores as JSON")
@@ -57,12 +60,12 @@ def gt_scale_from_meta(gt_path: Path) -> float | None:
     return float(meta["gt_scale"])
 
 
-def read_mask(path: str, shape: tuple[int, int]) -> np.ndarray:
+def read_mask(path: str | Path, shape: tuple[int, int]) -> np.ndarray:
     """Bool mask (white, > :data:`MASK_THRESHOLD`, = scored) of the size ``shape``;
     ConfigError otherwise."""
     if not Path(path).is_file():
         raise ConfigError(f"no such mask: {path}")
-    mask = cv2.imread(path, cv2.IMREAD_GRAYSCALE)
+    mask = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
     if mask is None:
         raise ConfigError(f"{path}: not a readable image")
     if mask.shape != shape:
@@ -71,7 +74,7 @@ def read_mask(path: str, shape: tuple[int, int]) -> np.ndarray:
     return mask > MASK_THRESHOLD
 
 
-def _read(path: str, scale: float | None, what: str) -> np.ndarray:
+def _read(path: str | Path, scale: float | None, what: str) -> np.ndarray:
     if not Path(path).is_file():
         raise ConfigError(f"no such {what} file: {path}")
     if scale is not None and scale <= 0:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
+from armstereo.cli import args as args_
 from armstereo.errors import RecordingError
 from armstereo.recording import Recording
 from armstereo.recording.inspect import format_text, summarize
@@ -18,7 +19,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                        "warnings. Exit 0 if it holds a usable stereo pair; 5 if it is unreadable "
                        "or has no complete pair with a calibration (the summary is still "
                        "printed when the file is readable).")
-    p.add_argument("file", metavar="FILE", help="recording (.mcap)")
+    p.add_argument("file", metavar="FILE", type=args_.input_file, help="recording (.mcap)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON (stable keys)")
     p.set_defaults(func=run)
 

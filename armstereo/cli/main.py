@@ -21,9 +21,17 @@ SUBCOMMANDS = ["demo", "capture", "inspect", "reconstruct", "stereo", "eval", "p
 log = logging.getLogger("armstereo")
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """Bad arguments end with one line on stderr (no usage dump) and exit 2, like every other
+    error of armstereo; ``--help`` still shows the usage."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The full parser with every subcommand module that is present."""
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="armstereo",
         description="A robot arm with a wrist camera as a 3D scanner.",
     )
@@ -70,9 +78,9 @@ def _run(argv: list[str]) -> int:
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
-    except SystemExit:
+    except SystemExit as done:  # --help, --version, or a bad argument (one line printed)
         sys.stdout.flush()  # --help into a closed pipe: BrokenPipeError, handled by main()
-        raise
+        return done.code if isinstance(done.code, int) else 2
     _configure_logging(args.debug, args.quiet)
     if not getattr(args, "func", None):
         parser.print_help()

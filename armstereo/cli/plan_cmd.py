@@ -6,6 +6,7 @@ import argparse
 import json
 
 from armstereo.apps.baseline import recommend_baseline
+from armstereo.cli import args as args_
 from armstereo.mount import CameraMount
 
 
@@ -13,16 +14,18 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("plan", help="recommend a baseline from depth range and accuracy",
                        description="Recommend a baseline from dZ = Z^2 dd / (f b), the "
                        "disparity budget and the overlap of the two views.")
-    p.add_argument("--near", type=float, required=True, help="nearest depth of interest (m)")
-    p.add_argument("--far", type=float, required=True, help="farthest depth of interest (m)")
-    p.add_argument("--depth-accuracy", type=float, required=True,
+    p.add_argument("--near", type=args_.positive("m"), required=True,
+                   help="nearest depth of interest (m)")
+    p.add_argument("--far", type=args_.positive("m"), required=True,
+                   help="farthest depth of interest (m)")
+    p.add_argument("--depth-accuracy", type=args_.positive("m"), required=True,
                    help="wanted depth accuracy at --far (m)")
     p.add_argument("--mount", default=None, help="camera mount file (default: bundled mount)")
-    p.add_argument("--max-disparity", type=int, default=64,
+    p.add_argument("--max-disparity", type=args_.whole(1, 4096), default=64,
                    help="matcher's disparity budget in pixels (default 64)")
-    p.add_argument("--disparity-precision", type=float, default=0.25,
+    p.add_argument("--disparity-precision", type=args_.positive("px"), default=0.25,
                    help="expected disparity error in pixels (default 0.25, subpixel matching)")
-    p.add_argument("--min-overlap", type=float, default=0.6,
+    p.add_argument("--min-overlap", type=args_.fraction(0.0, 1.0), default=0.6,
                    help="least share of the image both views must see at --near (default 0.6)")
     p.add_argument("--direction", choices=["x", "y"], default="x",
                    help="camera axis the baseline runs along (sets the image extent used)")

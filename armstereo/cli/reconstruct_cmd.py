@@ -3,13 +3,18 @@
 from __future__ import annotations
 
 import argparse
+import logging
 from pathlib import Path
 
-from armstereo.errors import ConfigError, RecordingError, StereoError
+from armstereo.cli import args as args_
+from armstereo.errors import ArmstereoError, ConfigError, RecordingError, StereoError
+from armstereo.io.files import output_folder
 from armstereo.reconstruct.outputs import write_outputs
 from armstereo.reconstruct.pipeline import reconstruct_pair
 from armstereo.reconstruct.stereo import METHODS
 from armstereo.recording import Recording
+
+log = logging.getLogger("armstereo.reconstruct")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -19,7 +24,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "triangulate. Writes per pair: PLY (base frame, metres), 16-bit depth PNG (mm, "
         "original left view), colorized disparity, rectified pair with epipolar lines, "
         "depth-error map (if the recording has ground truth) and an MCAP for Foxglove.")
-    p.add_argument("recording", metavar="REC.mcap", help="recording made by armstereo capture")
+    p.add_argument("recording", metavar="REC.mcap", type=args_.input_file,
+                   help="recording made by armstereo capture")
     p.add_argument("--pair", default="all", metavar="K|all",
                    help="pair number in the recording, or 'all' (default)")
     p.add_argument("--out", default=None, metavar="DIR",
@@ -29,9 +35,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--max-disparity", default="auto", metavar="auto|N",
                    help="disparity budget in pixels; auto derives it from the depth range "
                    "(default)")
-    p.add_argument("--near", type=float, default=None, metavar="M",
+    p.add_argument("--near", type=args_.positive("m"), default=None, metavar="M",
                    help="nearest depth of interest in metres (default: from the scene)")
-    p.add_argument("--far", type=float, default=None, metavar="M",
+    p.add_argument("--far", type=args_.positive("m"), default=None, metavar="M",
                    help="farthest depth of interest in metres (default: from the scene)")
     p.set_defaults(func=run)
 
@@ -67,9 +73,7 @@ def _select(rec: Recording, which: str) -> list:
 
 
 def run(args: argparse.Namespace) -> int:
-    path = Path(args.recording)
-    if not path.is_file():
-        raise ConfigError(f"no such recording: {path}")
+    path = args.recording
     max_disparity = _max_disparity(args.max_disparity)
     rec = Recording.open(path)
     pairs = _select(rec, args.pair)
@@ -78,20 +82,27 @@ def run(args: argparse.Namespace) -> int:
     provenance = {k: v for k, v in rec.metadata.items()
                   if k not in ("format_version", "armstereo_version")}
     provenance["source_recording"] = path.name
-    failures = 0
-    for pair in pairs:
-        try:
-            recon = reconstruct_pair(pair, method=args.method, max_disparity=max_disparity,
-                                     near=args.near, far=args.far)
-        except (RecordingError, StereoError) as err:
-            if len(pairs) == 1:
-                raise
-            print(f"pair {pair.index}: skipped: {err}")
-            failures += 1
-            continue
-        paths = write_outputs(recon, out, f"pair{pair.index:03d}", metadata=provenance)
-        _report(recon, paths)
-    return 0 if failures == 0 else 1
+    failed: list[ArmstereoError] = []
+    with output_folder(out):  # nothing reconstructed: no folder left behind
+        for pair in pairs:
+            try:
+                recon = reconstruct_pair(pair, method=args.method, max_disparity=max_disparity,
+                                         near=args.near, far=args.far)
+            except (RecordingError, StereoError) as err:
+                if len(pairs) == 1:
+                    raise
+                log.warning("pair %d: skipped: %s", pair.index, err)
+                failed.append(err)
+                continue
+            paths = write_outputs(recon, out, f"pair{pair.index:03d}", metadata=provenance)
+            _report(recon, paths)
+        if len(failed) == len(pairs):
+            raise type(failed[0])(f"no pair could be reconstructed (first: {failed[0]})")
+    if failed:
+        # the others are written; the exit code still says that not everything worked
+        raise type(failed[0])(f"{len(failed)} of {len(pairs)} pairs skipped (first: "
+                              f"{failed[0]}); the others are in {out}")
+    return 0
 
 
 def _report(recon, paths: dict[str, Path]) -> None:

@@ -10,6 +10,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from armstereo.cli import args as args_
 from armstereo.errors import ConfigError
 from armstereo.io.disparity import DISPARITY_SUFFIXES, write_disparity
 from armstereo.io.images import colorize_disparity, write_png
@@ -31,15 +32,16 @@ def register(sub: argparse._SubParsersAction) -> None:
         "right pixel (x - d, y). Writes the left image's disparity as .pfm (float, no match = "
         "inf) or .png (16-bit, value = 256 d, 0 = no match). Searched disparities are "
         "MIN .. MIN + N inclusive.")
-    p.add_argument("left", metavar="LEFT", help="left (reference) image, 8-bit grey or colour")
-    p.add_argument("right", metavar="RIGHT", help="right image, same size")
-    p.add_argument("--max-disparity", required=True, type=int, metavar="N",
+    p.add_argument("left", metavar="LEFT", type=args_.input_file,
+                   help="left (reference) image, 8-bit grey or colour")
+    p.add_argument("right", metavar="RIGHT", type=args_.input_file, help="right image, same size")
+    p.add_argument("--max-disparity", required=True, type=args_.whole(1, 4096), metavar="N",
                    help="largest disparity searched, counted from --min-disparity (pixels; "
                    "the range MIN .. MIN + N is inclusive)")
     p.add_argument("--out", required=True, metavar="DISP.pfm|.png", help="disparity file")
     p.add_argument("--method", choices=METHODS, default="birchfield",
                    help="matcher (default birchfield; sgbm = OpenCV StereoSGBM)")
-    p.add_argument("--min-disparity", type=int, default=0, metavar="M",
+    p.add_argument("--min-disparity", type=args_.whole(0, 4096), default=0, metavar="M",
                    help="smallest disparity searched (default 0)")
     p.add_argument("--colorized", metavar="VIEW.png", default=None,
                    help="also write a colour view of the disparity with a legend")
@@ -55,16 +57,16 @@ def register(sub: argparse._SubParsersAction) -> None:
                     help="reject pixels failing a left-right consistency check (twice the time)")
     bt.add_argument("--no-postprocess", action="store_true",
                     help="raw scanline result, without the paper's propagation across rows")
-    bt.add_argument("--threads", type=int, default=None, metavar="K",
+    bt.add_argument("--threads", type=args_.whole(1, 256), default=None, metavar="K",
                     help="rows are matched on K threads (default: all cores)")
     p.set_defaults(func=run)
 
 
-def read_image(path: str) -> np.ndarray:
+def read_image(path: str | Path) -> np.ndarray:
     """8-bit grey (H, W) or BGR (H, W, 3) image; ConfigError if missing or unreadable."""
     if not Path(path).is_file():
         raise ConfigError(f"no such image: {path}")
-    img = cv2.imread(path, cv2.IMREAD_ANYCOLOR)  # grey stays grey, alpha is dropped
+    img = cv2.imread(str(path), cv2.IMREAD_ANYCOLOR)  # grey stays grey, alpha is dropped
     if img is None:
         raise ConfigError(f"{path}: not a readable image")
     return img

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import argparse
-import sys
+import logging
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -13,16 +13,21 @@ import numpy as np
 from armstereo import backends
 from armstereo.apps.sweep import Target, best_baseline, format_table, plot, run_sweep, write_csv
 from armstereo.capture import CaptureSettings, plan_capture
+from armstereo.capture.plan import MAX_BASELINE_M
 from armstereo.capture.run import model_metadata
 from armstereo.capture.session import capture_to_file, confirm_live_motion
+from armstereo.cli import args as args_
 from armstereo.cli.backend_flags import BackendChoice, add_backend_flags, backend_choice
-from armstereo.cli.capture_cmd import ask_to_move
+from armstereo.cli.capture_cmd import add_motion_flags, ask_to_move
 from armstereo.devices import MotionLimits
 from armstereo.errors import ConfigError
+from armstereo.io.files import output_folder
 from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
 from armstereo.reconstruct.pipeline import reconstruct_pair
 from armstereo.recording import Recording
+
+log = logging.getLogger("armstereo.sweep")
 
 DEFAULT_BASELINES = "0.025,0.05,0.075,0.1,0.15,0.2,0.3"
 DEFAULT_DISTANCES = "0.8,1.1,1.4,1.7,2.0,2.2"
@@ -34,25 +39,23 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("sweep", help="measure planar targets with several baselines",
                        description="Reproduce the TASER experiment: planar targets at known "
                        "distances, one capture per baseline, measured against the truth.")
-    p.add_argument("--baselines", default=DEFAULT_BASELINES,
+    p.add_argument("--baselines", default=None, type=args_.positive_list("m", cap=MAX_BASELINE_M),
                    help=f"comma-separated baselines in m (default {DEFAULT_BASELINES})")
-    p.add_argument("--distances", default=DEFAULT_DISTANCES,
+    p.add_argument("--distances", default=None, type=args_.positive_list("m"),
                    help="mock only: target distances in m (default " + DEFAULT_DISTANCES + ")")
     p.add_argument("--target", action="append", default=[], metavar="U0,V0,U1,V1=DIST",
                    help="real arm: a target's pixel box in the first view and its measured "
                    "distance (m); repeat for each target")
     p.add_argument("--out", default=None, help="output folder (default ./armstereo-sweep-<time>)")
     p.add_argument("--method", choices=["birchfield", "sgbm"], default="birchfield")
-    p.add_argument("--speed", type=float, default=MotionLimits.linear_speed,
-                   help="linear speed cap (m/s)")
-    p.add_argument("--settle", type=float, default=0.5, help="settle time before a shot (s)")
+    add_motion_flags(p)
     p.add_argument("--yes", action="store_true", help="allow live motion without asking")
     add_backend_flags(p, defaults=SWEEP_DEFAULTS)
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    baselines = _floats(args.baselines, "--baselines")
+    baselines = args.baselines or _floats(DEFAULT_BASELINES)
     mock = args.arm == "mock"
     if not mock and not args.target:
         raise ConfigError("a sweep on a real arm needs --target U0,V0,U1,V1=DIST for each "
@@ -60,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
     if mock and args.target:
         raise ConfigError("--target is for a real arm; the mock places its own targets "
                           "(--distances)")
-    if not mock and args.distances != DEFAULT_DISTANCES:
+    if not mock and args.distances is not None:
         raise ConfigError("--distances is for the mock arm; on a real arm give --target")
     fixed = {"arm": {"layout": "horizontal"}} if mock else {}
     choice = backend_choice(args, defaults=SWEEP_DEFAULTS, fixed=fixed)
@@ -68,14 +71,11 @@ def run(args: argparse.Namespace) -> int:
     model = ArmModel.load(args.robot, mount=CameraMount.load(args.mount))
     capture_one = (_mock_capture(args, choice, model, baselines, out) if mock
                    else _live_capture(args, choice, model, out))
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise ConfigError(f"cannot create output folder {out}: {err.strerror}") from None
-    results = run_sweep(baselines, capture_one,
-                        lambda s: print(s, file=sys.stderr, flush=True))
-    write_csv(out / "sweep.csv", results)
-    plot(out / "sweep.png", results, f"armstereo sweep ({args.arm} {model.name}, {args.method})")
+    with output_folder(out):  # a sweep that fails before its first capture leaves nothing
+        results = run_sweep(baselines, capture_one, lambda s: log.info("%s", s))
+        write_csv(out / "sweep.csv", results)
+        plot(out / "sweep.png", results,
+             f"armstereo sweep ({args.arm} {model.name}, {args.method})")
     print("\n".join(format_table(results)))
     best = best_baseline(results)
     span = f"{min(m.true_distance_m for m in results):g}-" \
@@ -86,19 +86,15 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _floats(text: str, flag: str) -> list[float]:
-    try:
-        values = [float(v) for v in text.split(",") if v.strip()]
-    except ValueError:
-        values = []
-    if not values or any(not (v > 0) for v in values):
-        raise ConfigError(f"{flag} must be positive numbers separated by commas, not {text!r}")
-    return values
+def _floats(text: str) -> list[float]:
+    return [float(v) for v in text.split(",")]
 
 
 def _settings(args: argparse.Namespace, b: float) -> CaptureSettings:
     return CaptureSettings(baseline=b, direction=np.array([1.0, 0.0, 0.0]), pairs=1,
-                           settle_s=args.settle, limits=MotionLimits(linear_speed=args.speed))
+                           settle_s=args.settle,
+                           limits=MotionLimits(linear_speed=args.speed,
+                                               linear_acceleration=args.acceleration))
 
 
 def _reconstruct(path: Path, args, near: float, far: float):
@@ -107,7 +103,7 @@ def _reconstruct(path: Path, args, near: float, far: float):
 
 def _mock_capture(args, choice: BackendChoice, model: ArmModel, baselines: list[float],
                   out: Path):
-    distances = _floats(args.distances, "--distances")
+    distances = args.distances or _floats(DEFAULT_DISTANCES)
     q0 = backends.mock_start_joints(model, "horizontal")
     seed = choice.camera_config.seed
     ts = backends.mock_target_scene(distances, model.camera_pose(q0), model.mount.intrinsics,

@@ -113,7 +113,13 @@ def _read_png(path: Path, scale: float | None) -> np.ndarray:
     if data is None:
         raise StereoError(f"{path}: not a readable image")
     if data.ndim == 3:
-        data = data[:, :, 0]  # Middlebury 2001 ground truth: three identical channels
+        # Middlebury 2001 ground truth has three identical channels; a colour photograph is
+        # not a disparity map
+        if data.shape[2] not in (3, 4) or not (np.array_equal(data[:, :, 0], data[:, :, 1])
+                                               and np.array_equal(data[:, :, 0], data[:, :, 2])):
+            raise StereoError(f"{path} is a colour image, not a disparity map (its channels "
+                              "differ)")
+        data = data[:, :, 0]
     if scale is None:
         scale = PNG_SCALE if data.dtype == np.uint16 else 1.0
     disp = data.astype(np.float32) / np.float32(scale)

@@ -8,8 +8,10 @@ naming the path; what was written before stays.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 
 from armstereo.errors import OutputError
@@ -51,3 +53,25 @@ def write_bytes_atomic(path: str | Path, data: bytes) -> Path:
 def write_text_atomic(path: str | Path, text: str) -> Path:
     """:func:`write_bytes_atomic` for UTF-8 text (reports, JSON)."""
     return write_bytes_atomic(path, text.encode("utf-8"))
+
+
+@contextlib.contextmanager
+def output_folder(path: str | Path) -> Iterator[Path]:
+    """Make the folder ``path`` (and its parents) for a run's outputs; if the run fails and the
+    folder was made here and is still empty, remove it again, so a failed run leaves nothing.
+
+    Raises OutputError naming the folder when it cannot be made (read-only, no permission).
+    """
+    path = Path(path)
+    made = [p for p in (path, *path.parents) if not p.exists()]
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise OutputError(f"cannot create output folder {path}: {err.strerror or err}") from None
+    try:
+        yield path
+    except BaseException:
+        for folder in made:  # innermost first
+            with contextlib.suppress(OSError):  # not empty, or gone: leave it
+                folder.rmdir()
+        raise

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from armstereo.errors import ConfigError
+from armstereo.errors import OutputError
 from armstereo.frame import Frame
 from armstereo.io.images import depth_error_map, side_by_side, write_depth_png, write_png
 from armstereo.io.ply import write_ply
@@ -41,7 +41,7 @@ def write_outputs(recon: PairReconstruction, out_dir: str | Path, prefix: str, *
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
-        raise ConfigError(f"cannot create output folder {out}: {err.strerror}") from err
+        raise OutputError(f"cannot create output folder {out}: {err.strerror}") from None
     paths = output_paths(out, prefix) if paths is None else paths
     products = {
         "depth": lambda p: write_depth_png(p, recon.depth_original),

@@ -34,8 +34,21 @@ def assemble(rec: Recording, col: Collector) -> None:
     _set_calibration(rec, col)
     _build_views(rec, col)
     _build_pairs(rec, col)
+    _check_pairs_asked(rec)
     if col.first_ns is None:
         rec._warn("the recording holds no readable message")
+
+
+def _check_pairs_asked(rec: Recording) -> None:
+    """An interrupted capture holds fewer pairs than its metadata asked for: say so."""
+    try:
+        asked = int(rec.metadata.get("pairs", ""))
+    except ValueError:
+        return
+    got = len(rec._pairs)
+    if got < asked:
+        rec._warn(f"the capture asked for {asked} pair(s) but {got} complete pair(s) were "
+                  "recorded (interrupted or failed?)")
 
 
 def _set_calibration(rec: Recording, col: Collector) -> None:

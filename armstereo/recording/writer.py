@@ -36,6 +36,11 @@ from mcap.writer import LIBRARY_IDENTIFIER, CompressionType
 from mcap.writer import Writer as McapWriter
 from mcap_protobuf.schema import register_schema
 
+try:  # POSIX: an advisory lock keeps two writers off one file
+    import fcntl
+except ImportError:  # pragma: no cover - Windows: no lock, the last writer wins
+    fcntl = None
+
 from armstereo import __version__
 from armstereo.camera_model import Intrinsics
 from armstereo.errors import ConfigError, RecordingError
@@ -94,10 +99,7 @@ class RecordingWriter:
         self._closed = False
         self._broken = False  # a write failed half way: close() must not trust the writer
         self._good_offset = 0  # file size after the last complete flush
-        try:
-            self._file = open(self.path, "wb")  # closed by close()
-        except OSError as err:
-            raise RecordingError(f"cannot create recording {self.path}: {err.strerror}") from None
+        self._file = _open_exclusive(self.path)  # closed by close()
         try:
             self._mcap = McapWriter(self._file, chunk_size=CHUNK_SIZE,
                                     compression=chunk_compression)
@@ -412,6 +414,32 @@ def _transform(name: str, T: np.ndarray, parent: str, child: str, t_ns: int) -> 
     return FrameTransform(timestamp=_stamp(t_ns), parent_frame_id=parent, child_frame_id=child,
                           translation=Vector3(x=tx, y=ty, z=tz),
                           rotation=Quaternion(x=x, y=y, z=z, w=w))
+
+
+def _open_exclusive(path: Path):
+    """``path`` opened for writing, emptied, and locked for this process alone.
+
+    The lock is taken before the file is emptied, so a second writer of the same file (two
+    captures with ``--force``) fails at once and the first one's views survive. The lock goes
+    with the file descriptor (closed by :meth:`RecordingWriter.close` or process death).
+    """
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+    except OSError as err:
+        raise RecordingError(f"cannot create recording {path}: {err.strerror}") from None
+    try:
+        if fcntl is not None:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        os.close(fd)
+        raise ConfigError(f"{path} is being written by another process; choose another "
+                          "--out or wait for it to finish") from None
+    try:
+        os.ftruncate(fd, 0)
+        return os.fdopen(fd, "wb")
+    except OSError as err:
+        os.close(fd)
+        raise RecordingError(f"cannot create recording {path}: {err.strerror}") from None
 
 
 def _metadata_record(metadata: Mapping[str, str]) -> dict[str, str]:

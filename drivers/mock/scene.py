@@ -709,7 +709,8 @@ def planar_target_scene(distances: Sequence[float], T_base_camera: np.ndarray,
     T = _check_pose(T_base_camera)
     d = np.asarray(distances, dtype=float).reshape(-1)
     if d.size == 0 or not np.all(np.isfinite(d)) or np.any(d <= 0.05):
-        raise ConfigError(f"target distances must be finite and > 0.05 m, got {list(d)}")
+        raise ConfigError("target distances must be finite and > 0.05 m, got "
+                          + ", ".join(f"{v:g}" for v in d))
     if not 0.1 <= fill <= 0.95:
         raise ConfigError(f"fill must be in [0.1, 0.95], got {fill}")
     order = np.argsort(d, kind="stable")

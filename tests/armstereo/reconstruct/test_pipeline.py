@@ -172,7 +172,7 @@ def test_cli_reconstructs_one_pair(recording, tmp_path, capsys):
 
 
 @pytest.mark.parametrize("argv,code,message", [
-    (["reconstruct", "missing.mcap"], 2, "no such recording"),
+    (["reconstruct", "missing.mcap"], 2, "argument REC.mcap: no such file"),
     (["reconstruct", "{rec}", "--pair", "7"], 2, "--pair 7 is not in"),
     (["reconstruct", "{rec}", "--pair", "x"], 2, "pair number"),
     (["reconstruct", "{rec}", "--max-disparity", "lots"], 2, "whole number"),
