@@ -45,7 +45,12 @@ class CameraMount:
     def load(cls, name_or_path: str | Path | None = None) -> CameraMount:
         """Load a mount by file path or by the name of a file in ``robot_models/mounts/``."""
         path = resolve_mount_path(name_or_path)
-        text = path.read_text()
+        try:
+            text = path.read_text(encoding="utf-8")
+        except UnicodeDecodeError:
+            raise ConfigError(f"mount file {path} is not a text (TOML) file") from None
+        except OSError as err:
+            raise ConfigError(f"cannot read mount file {path}: {err.strerror}") from None
         try:
             doc = tomllib.loads(text)
         except tomllib.TOMLDecodeError as err:

@@ -9,6 +9,7 @@ infinity are never accepted; booleans are not numbers.
 from __future__ import annotations
 
 import math
+import re
 
 from armstereo.errors import ArmstereoError, ConfigError
 
@@ -72,3 +73,20 @@ def whole(value, what: str, lo: int, hi: int, *,
     if not lo <= value <= hi:
         raise error(f"{what} must be in {lo}..{hi}, got {value}")
     return value
+
+
+_HOST_LABEL = re.compile(r"[A-Za-z0-9]([A-Za-z0-9-]{0,61}[A-Za-z0-9])?")
+
+
+def host(value, what: str, *, error: type[ArmstereoError] = ConfigError) -> str:
+    """A controller address: an IPv4/IPv6 address or a DNS name (no port, no URL, no path)."""
+    text = value.strip() if isinstance(value, str) else ""
+    if not text:
+        raise error(f"{what} must be an IP address or host name, got {value!r}")
+    if ":" in text and re.fullmatch(r"[0-9A-Fa-f:.]+", text) and text.count(":") >= 2:
+        return text  # IPv6
+    labels = text.rstrip(".").split(".")
+    if len(text) > 253 or not all(_HOST_LABEL.fullmatch(label) for label in labels):
+        raise error(f"{what} {text!r} is not an IP address or host name (give the address "
+                    "only: no port, URL or path)")
+    return text

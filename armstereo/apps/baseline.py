@@ -90,8 +90,9 @@ def _check_inputs(near: float, far: float, accuracy: float, focal_px: float, max
                   precision: float, min_overlap: float) -> None:
     if not (0 < near < far):
         raise ConfigError(f"need 0 < --near < --far, got near={near} far={far}")
-    if accuracy <= 0:
-        raise ConfigError(f"--depth-accuracy must be positive, got {accuracy}")
+    if not 0 < accuracy < far:
+        raise ConfigError(f"--depth-accuracy must be positive and less than --far ({far} m), "
+                          f"got {accuracy}")
     if focal_px <= 0:
         raise ConfigError(f"focal length must be positive, got {focal_px}")
     if max_disp < 1:

@@ -61,6 +61,11 @@ def positive_list(unit: str, *, cap: float | None = None) -> Callable[[str], lis
     return _typed(check, "list of numbers")
 
 
+def host(text: str) -> str:
+    """An IP address or host name (no port, URL or path)."""
+    return _typed(lambda t: validate.host(t, "value"), "host")(text)
+
+
 def input_file(text: str) -> Path:
     """An existing, readable regular file (the same rule and exit code for every command)."""
     path = Path(text)

@@ -41,8 +41,8 @@ def run(args: argparse.Namespace) -> int:
                           seed=args.seed)
     demo_settings(options)  # bad options fail here, before a folder is made
     out = _out_dir(args.out)
-    progress(f"armstereo demo -> {out}/")
     with output_folder(out):  # a run that fails leaves no empty folder behind
+        progress(f"armstereo demo -> {out}/")
         report = run_demo(out, options, progress)
     _print_summary(report, out)
     return 0

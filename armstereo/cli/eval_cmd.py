@@ -10,7 +10,7 @@ import cv2
 import numpy as np
 
 from armstereo.cli import args as args_
-from armstereo.errors import ConfigError
+from armstereo.errors import ConfigError, StereoError
 from armstereo.evaluation.disparity import evaluate_disparity
 from armstereo.io.disparity import read_disparity
 
@@ -75,11 +75,10 @@ def read_mask(path: str | Path, shape: tuple[int, int]) -> np.ndarray:
 
 
 def _read(path: str | Path, scale: float | None, what: str) -> np.ndarray:
-    if not Path(path).is_file():
-        raise ConfigError(f"no such {what} file: {path}")
-    if scale is not None and scale <= 0:
-        raise ConfigError(f"the {what} scale must be > 0, got {scale}")
-    return read_disparity(path, scale=scale)
+    try:
+        return read_disparity(path, scale=scale)
+    except StereoError as err:  # not a disparity file: bad input, like a missing one
+        raise ConfigError(f"{what} file: {err}") from None
 
 
 def format_scores(scores: dict) -> str:

@@ -53,8 +53,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _configure_logging(debug: bool, quiet: bool) -> None:
     level = logging.DEBUG if debug else logging.WARNING if quiet else logging.INFO
+    # force: each call (tests run several commands in one process) logs to today's stderr
     logging.basicConfig(level=level, format="%(message)s" if not debug else
-                        "%(levelname)s %(name)s: %(message)s", stream=sys.stderr)
+                        "%(levelname)s %(name)s: %(message)s", stream=sys.stderr, force=True)
 
 
 def _move_global_flags_first(argv: list[str]) -> list[str]:

@@ -10,6 +10,7 @@ import logging
 import numpy as np
 
 from armstereo import backends
+from armstereo.cli import args as args_
 from armstereo.errors import ConfigError, HardwareError
 from armstereo.robot.dh import (
     FKDifference,
@@ -26,6 +27,7 @@ log = logging.getLogger(__name__)
 
 READ_ONLY_PORTS = (30011, 30012)  # the primary/secondary ports that cannot run commands
 DEFAULT_TIMEOUT_S = 2.0
+MAX_TIMEOUT_S = 60.0
 NO_TABLE_EXIT = HardwareError.exit_code
 
 
@@ -38,7 +40,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "nominal model's forward kinematics is from the calibrated one at the current joints. "
         f"Exit 0 when the controller's table was read, {NO_TABLE_EXIT} when it was not (the "
         "nominal model is shown, with the reason).")
-    p.add_argument("--host", required=True, help="the controller's IP address or name")
+    p.add_argument("--host", required=True, type=args_.host,
+                   help="the controller's IP address or name")
     p.add_argument("--json", action="store_true", help="print the result as JSON (stable keys)")
     p.add_argument("--save", metavar="FILE", default=None,
                    help="save the calibrated model to FILE (.json) for --robot FILE")
@@ -47,7 +50,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "controller's kinematics are another model's (default: identify it)")
     p.add_argument("--port", type=int, choices=READ_ONLY_PORTS, default=READ_ONLY_PORTS[1],
                    help="read-only port: 30012 secondary (default) or 30011 primary")
-    p.add_argument("--timeout", type=float, default=DEFAULT_TIMEOUT_S,
+    p.add_argument("--timeout", type=args_.positive("s", cap=MAX_TIMEOUT_S),
+                   default=DEFAULT_TIMEOUT_S,
                    help="seconds to wait for the table (default %(default)s)")
     p.set_defaults(func=run)
 
@@ -61,13 +65,13 @@ def run(args: argparse.Namespace) -> int:
         version = summary["software_version"] or ""
         summary["saved_to"] = str(save_model_file(args.save, result.table, host=args.host,
                                                   software_version=version))
-    for warning in summary["warnings"]:
-        log.warning("warning: %s", warning)
     print(json.dumps(summary, indent=2) if args.json else format_text(summary))
     if not result.calibrated:
-        if args.save:
-            log.error("nothing saved to %s: no calibrated table was read", args.save)
-        return NO_TABLE_EXIT
+        reason = summary["warnings"][0] if summary["warnings"] else "no calibrated table read"
+        saved = f"; nothing saved to {args.save}" if args.save else ""
+        raise HardwareError(f"no calibrated kinematics from {args.host}: {reason}{saved}")
+    for warning in summary["warnings"]:
+        log.warning("warning: %s", warning)
     return 0
 
 

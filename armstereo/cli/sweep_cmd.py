@@ -31,6 +31,7 @@ log = logging.getLogger("armstereo.sweep")
 
 DEFAULT_BASELINES = "0.025,0.05,0.075,0.1,0.15,0.2,0.3"
 DEFAULT_DISTANCES = "0.8,1.1,1.4,1.7,2.0,2.2"
+MAX_TARGET_DISTANCE_M = 20.0  # farther than any table-top stereo pair resolves
 # A real sensor is never noise free; the sweep's shape depends on it.
 SWEEP_DEFAULTS = {"noise": 2.0}
 
@@ -41,7 +42,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                        "distances, one capture per baseline, measured against the truth.")
     p.add_argument("--baselines", default=None, type=args_.positive_list("m", cap=MAX_BASELINE_M),
                    help=f"comma-separated baselines in m (default {DEFAULT_BASELINES})")
-    p.add_argument("--distances", default=None, type=args_.positive_list("m"),
+    p.add_argument("--distances", default=None,
+                   type=args_.positive_list("m", cap=MAX_TARGET_DISTANCE_M),
                    help="mock only: target distances in m (default " + DEFAULT_DISTANCES + ")")
     p.add_argument("--target", action="append", default=[], metavar="U0,V0,U1,V1=DIST",
                    help="real arm: a target's pixel box in the first view and its measured "

@@ -3,13 +3,16 @@ are the command-line flags (see :mod:`armstereo.backends`)."""
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Any
 
 from armstereo.backends import option
-from armstereo.errors import ConfigError
+from armstereo.validate import non_negative, whole
 from drivers.mock.faults import FAULTS, FaultPlan
+
+MAX_JOINT_NOISE_RAD = 0.01  # far beyond any arm's repeatability (UR: ~3e-5 rad)
+MAX_CAMERA_NOISE = 64.0  # grey levels; beyond this the image is mostly noise
+MAX_SEED = 2**32 - 1
 
 _FAULT_HELP = ("mock backends only: inject a fault (" + ", ".join(FAULTS) + "; N = which move "
                "or grab, default 2); repeatable")
@@ -34,7 +37,8 @@ class MockArmConfig:
         "--inject-fault", _FAULT_HELP, action="append", metavar="NAME[@N]"))
 
     def __post_init__(self) -> None:
-        _check_nonnegative("--joint-noise", self.joint_noise, "rad")
+        non_negative(self.joint_noise, "--joint-noise", "rad", cap=MAX_JOINT_NOISE_RAD)
+        whole(self.seed, "--seed", 0, MAX_SEED)
         object.__setattr__(self, "faults", tuple(self.faults))
         FaultPlan.parse(self.faults)  # names and counts checked now, before anything moves
 
@@ -62,7 +66,8 @@ class MockCameraConfig:
         "--inject-fault", _FAULT_HELP, action="append", metavar="NAME[@N]"))
 
     def __post_init__(self) -> None:
-        _check_nonnegative("--camera-noise", self.noise, "grey levels")
+        non_negative(self.noise, "--camera-noise", "grey levels", cap=MAX_CAMERA_NOISE)
+        whole(self.seed, "--seed", 0, MAX_SEED)
         object.__setattr__(self, "faults", tuple(self.faults))
         FaultPlan.parse(self.faults)
 
@@ -74,8 +79,3 @@ class MockCameraConfig:
     def injects(fault: str) -> bool:
         """True for the faults the mock camera injects (those counted in grabs)."""
         return fault in FAULTS and FAULTS[fault][0] == "grab"
-
-
-def _check_nonnegative(flag: str, value: float, unit: str) -> None:
-    if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
-        raise ConfigError(f"{flag} must be a finite number >= 0 {unit}, got {value!r}")

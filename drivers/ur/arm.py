@@ -22,7 +22,6 @@ How ur_rtde's traps are avoided:
 from __future__ import annotations
 
 import logging
-import re
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
@@ -49,6 +48,7 @@ from armstereo.errors import (
     ProtectiveStop,
 )
 from armstereo.transforms import T_from_ur_pose, as_rigid, matrix_to_rotvec, ur_pose_from_T
+from armstereo.validate import host as validate_host
 from armstereo.validate import positive
 from drivers.ur.channel import ControlChannel
 from drivers.ur.diagnose import connection_failed
@@ -602,14 +602,7 @@ def _import_ur_rtde():
 
 
 def _check_host(host) -> str:
-    if not isinstance(host, str) or not host.strip():
-        raise ConfigError(f"UR host must be the controller's IP address or name, got {host!r}")
-    host = host.strip()
-    if (any(c.isspace() for c in host) or "/" in host
-            or re.fullmatch(r"[\w.\-]+:\d+", host)):
-        raise ConfigError(f"UR host {host!r} is not an address: give the IP or name only "
-                          f"(no port, no URL)")
-    return host
+    return validate_host(host, "UR host")
 
 
 def _check_cap(what: str, value: float, cap: float, unit: str) -> None:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from armstereo import validate
 from armstereo.backends import option
 from armstereo.errors import ConfigError
 
@@ -22,3 +23,4 @@ class URArmConfig:
     def __post_init__(self) -> None:
         if not self.host or not str(self.host).strip():
             raise ConfigError("--arm ur needs --host IP (the controller's address)")
+        object.__setattr__(self, "host", validate.host(self.host, "--host"))

@@ -88,7 +88,8 @@ def test_no_table_prints_the_nominal_model_and_exits_4(emu, run, tmp_path):
     s = json.loads(out)
     assert s["calibrated"] is False and s["hash"] == nominal_table("ur5e").sha256
     assert s["nominal_vs_calibrated"] is None and s["saved_to"] is None
-    assert "truncated message" in err and "NOMINAL ur5e" in err and "nothing saved" in err
+    assert "truncated message" in err and "nothing saved" in err and len(err.splitlines()) == 1
+    assert any("NOMINAL ur5e" in w for w in s["warnings"])
     assert not (tmp_path / "x.json").exists()
 
 
