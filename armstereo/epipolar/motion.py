@@ -29,6 +29,7 @@ MIN_BASELINE_M = 0.005  # below this the pair counts as a pure rotation
 FORWARD_CONE_DEG = 30.0
 LATERAL_CONE_DEG = 15.0
 LATERAL_MAX_ROTATION_DEG = 5.0
+MAX_EPIPOLE_PX = 1e6  # farther epipoles are reported as "at infinity" (None)
 
 
 @dataclass(frozen=True)
@@ -116,9 +117,11 @@ def _axis_angle(d: np.ndarray) -> float:
 
 def _epipole(intr: Intrinsics | None, c_other: np.ndarray) -> tuple[float, float] | None:
     """Pixel of the other centre (camera frame), in front or behind; None at infinity."""
-    if intr is None or abs(c_other[2]) < 1e-12 * max(1.0, float(np.linalg.norm(c_other))):
+    if intr is None or c_other[2] == 0:
         return None
     p = intr.K @ (c_other / c_other[2])
+    if not np.all(np.abs(p[:2]) < MAX_EPIPOLE_PX):
+        return None
     return float(p[0]), float(p[1])
 
 
@@ -126,3 +129,21 @@ def _inside(e: tuple[float, float] | None, intr: Intrinsics | None) -> bool:
     if e is None or intr is None:
         return False
     return -0.5 <= e[0] <= intr.width - 0.5 and -0.5 <= e[1] <= intr.height - 0.5
+
+
+def require_stereo_motion(T_base_cam1: np.ndarray, T_base_cam2: np.ndarray,
+                          intrinsics: Intrinsics, *,
+                          min_baseline: float = MIN_BASELINE_M) -> MotionReport:
+    """Capture pre-flight guard for one planned pair (poses in ``base``, metres).
+
+    Raises PreflightError when the views would differ by a rotation only (optical centres
+    closer than ``min_baseline``); otherwise returns the report, whose ``warnings`` (an epipole
+    inside the image, a forward motion) the caller shows before moving.
+    """
+    from armstereo.errors import PreflightError
+
+    report = classify_motion(T_base_cam1, T_base_cam2, intrinsics1=intrinsics,
+                             min_baseline=min_baseline)
+    if report.kind == "rotation_only":
+        raise PreflightError(f"planned pair is a pure rotation: {report.warnings[0]}")
+    return report
