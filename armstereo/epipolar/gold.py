@@ -34,7 +34,8 @@ def gold_standard(F0: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> np.ndarray:
     T1, T2 = hartley_normalization(x1), hartley_normalization(x2)
     n1, n2 = apply(T1, x1), apply(T2, x2)
     Fn = np.linalg.inv(T2).T @ F0 @ np.linalg.inv(T1)
-    P2, points = _initial(Fn, n1, n2)
+    # unit norm: the canonical P2 = [[e']_x F | e'] mixes F's scale with the unit e'
+    P2, points = _initial(Fn / np.linalg.norm(Fn), n1, n2)
     P2, points = _levenberg_marquardt(P2, points, n1, n2)
     M, m = P2[:, :3], P2[:, 3]
     return T2.T @ (skew(m) @ M) @ T1
