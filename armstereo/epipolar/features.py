@@ -8,6 +8,10 @@ Three detectors, one result type (:class:`Matches`, ``(N, 2)`` float64 pixel arr
   A pair is kept when it is the best match in both directions (mutual best), its NCC reaches
   ``min_ncc`` and it passes the ratio test on the patch distance ``sqrt(2 (1 - NCC))`` (the
   Euclidean distance between the normalised patches) against the second best candidate.
+  Corners found independently in two views of textured surfaces do not mark exactly the same
+  point (cornerSubPix is exact only on true corners), so the partner's position is then
+  refined to the sub-pixel peak of the NCC surface (:func:`refine_ncc`): on a shifted
+  texture the median error drops from 0.2 px to a few hundredths.
   Not invariant to rotation or scale: for views that differ by a turn of the wrist, warp one
   image first (the self-check does, see :mod:`armstereo.epipolar.selfcheck`).
 * ``sift`` and ``orb``: OpenCV's detectors and descriptors with the same mutual-best and ratio
@@ -33,9 +37,11 @@ HARRIS_QUALITY = 0.001  # corner response relative to the strongest one
 HARRIS_MIN_DISTANCE_PX = 8
 HARRIS_BLOCK = 5  # structure-tensor window (px)
 SUBPIX_WINDOW = (5, 5)  # half-sizes for cv2.cornerSubPix: an 11x11 search window
-SUBPIX_CRITERIA = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 40, 0.001)
+SUBPIX_CRITERIA = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 20, 0.01)
 PATCH_RADIUS = 7  # NCC patches are 15x15 px
 DEFAULT_MIN_NCC = 0.8
+REFINE_ITERATIONS = 2
+PATCH_CHUNK = 30000  # map rows per cv2.remap call (its limit is 32767)
 DEFAULT_SEARCH_FRACTION = 0.35  # search window half-size as a share of the image width
 
 
@@ -117,16 +123,19 @@ def _mask(mask: np.ndarray | None, image: np.ndarray, name: str) -> np.ndarray |
 
 # ------------------------------------------------------------------------------ Harris + NCC
 def harris_corners(image: np.ndarray, max_corners: int = DEFAULT_MAX_FEATURES,
-                   mask: np.ndarray | None = None) -> np.ndarray:
-    """Sub-pixel Harris corners ``(N, 2)`` px of a grey uint8 image, at least a patch radius
-    away from the border (so every corner has a full NCC patch)."""
+                   mask: np.ndarray | None = None, *, subpixel: bool = True) -> np.ndarray:
+    """Harris corners ``(N, 2)`` px of a grey uint8 image, at least a patch radius away from
+    the border (so every corner has a full NCC patch); refined to sub-pixel positions by
+    ``cv2.cornerSubPix`` unless ``subpixel=False``."""
     pts = cv2.goodFeaturesToTrack(image, max_corners, HARRIS_QUALITY, HARRIS_MIN_DISTANCE_PX,
                                   mask=mask, blockSize=HARRIS_BLOCK, useHarrisDetector=True,
                                   k=HARRIS_K)
     if pts is None:
         return np.zeros((0, 2))
-    pts = cv2.cornerSubPix(image, pts.astype(np.float32), SUBPIX_WINDOW, (-1, -1),
-                           SUBPIX_CRITERIA).reshape(-1, 2).astype(float)
+    if subpixel:
+        pts = cv2.cornerSubPix(image, pts.astype(np.float32), SUBPIX_WINDOW, (-1, -1),
+                               SUBPIX_CRITERIA)
+    pts = pts.reshape(-1, 2).astype(float)
     h, w = image.shape
     r = PATCH_RADIUS + 1
     inside = ((pts[:, 0] >= r) & (pts[:, 0] <= w - 1 - r) & (pts[:, 1] >= r)
@@ -139,15 +148,18 @@ def normalised_patches(image: np.ndarray, pts: np.ndarray,
     """``(N, (2r+1)^2)`` float32 patches around ``pts`` (sampled bilinearly at the sub-pixel
     positions), zero mean and unit norm; flat patches are all zeros (NCC 0 with anything)."""
     size = 2 * radius + 1
-    offs = np.arange(-radius, radius + 1, dtype=np.float32)
-    mx = (pts[:, 0, None, None] + offs[None, None, :]).astype(np.float32)
-    my = (pts[:, 1, None, None] + offs[None, :, None]).astype(np.float32)
-    mx = np.broadcast_to(mx, (len(pts), size, size)).reshape(-1, size)
-    my = np.broadcast_to(my, (len(pts), size, size)).reshape(-1, size)
     if len(pts) == 0:
         return np.zeros((0, size * size), np.float32)
-    patches = cv2.remap(image, mx, my, cv2.INTER_LINEAR).astype(np.float32)
-    patches = patches.reshape(len(pts), size * size)
+    offs = np.arange(-radius, radius + 1, dtype=np.float32)
+    chunk = PATCH_CHUNK // size  # cv2.remap takes fewer than 32767 map rows
+    parts = []
+    for start in range(0, len(pts), chunk):
+        p = pts[start:start + chunk].astype(np.float32)
+        mx = np.broadcast_to(p[:, 0, None, None] + offs[None, None, :], (len(p), size, size))
+        my = np.broadcast_to(p[:, 1, None, None] + offs[None, :, None], (len(p), size, size))
+        parts.append(cv2.remap(image, np.ascontiguousarray(mx.reshape(-1, size)),
+                               np.ascontiguousarray(my.reshape(-1, size)), cv2.INTER_LINEAR))
+    patches = np.vstack(parts).astype(np.float32).reshape(len(pts), size * size)
     patches -= patches.mean(axis=1, keepdims=True)
     norm = np.linalg.norm(patches, axis=1, keepdims=True)
     return np.divide(patches, norm, out=np.zeros_like(patches), where=norm > 1e-6)
@@ -167,15 +179,52 @@ def _match_harris(g1, g2, m1, m2, max_features, ratio, min_ncc, search_radius) -
     dist_best = np.sqrt(np.maximum(2.0 * (1.0 - ncc[i, j]), 0.0))
     dist_second = np.sqrt(np.maximum(2.0 * (1.0 - second), 0.0))
     keep = dist_best < ratio * dist_second
-    return Matches(p1[i[keep]], p2[j[keep]], ncc[i[keep], j[keep]].astype(float), "harris",
-                   (len(p1), len(p2)))
+    x1, x2 = p1[i[keep]], refine_ncc(g1, g2, p1[i[keep]], p2[j[keep]])
+    return Matches(x1, x2, ncc[i[keep], j[keep]].astype(float), "harris", (len(p1), len(p2)))
+
+
+def refine_ncc(g1: np.ndarray, g2: np.ndarray, x1: np.ndarray, x2: np.ndarray,
+               iterations: int = REFINE_ITERATIONS) -> np.ndarray:
+    """Move each ``x2`` ((N, 2) px) to the sub-pixel NCC peak of ``x1``'s patch in ``g2``.
+
+    Each round samples the NCC at the 3x3 offsets of one pixel around the current position,
+    fits a quadratic surface and moves to its peak (at most one pixel per round; a surface
+    without a peak leaves the point where it is). Points whose patch would leave the image
+    keep their position.
+    """
+    x2 = x2.copy()
+    if len(x1) == 0:
+        return x2
+    ref = normalised_patches(g1, x1)
+    offsets = np.array([(dx, dy) for dy in (-1, 0, 1) for dx in (-1, 0, 1)], float)
+    A = np.column_stack([offsets[:, 0] ** 2, offsets[:, 1] ** 2, offsets[:, 0] * offsets[:, 1],
+                         offsets[:, 0], offsets[:, 1], np.ones(9)])
+    fit = np.linalg.pinv(A)  # (6, 9): quadratic coefficients from the 9 samples
+    h, w = g2.shape
+    for _ in range(iterations):
+        shifted = (x2[:, None, :] + offsets[None]).reshape(-1, 2)  # (N * 9, 2)
+        cand = normalised_patches(g2, shifted).reshape(len(x2), 9, -1)
+        ncc = np.einsum("nkp,np->nk", cand, ref)
+        a, b, c, d, e, _ = fit @ ncc.T
+        det = 4 * a * b - c * c
+        peak = (a < 0) & (det > 0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            step = np.column_stack([(c * e - 2 * b * d) / det, (c * d - 2 * a * e) / det])
+        step = np.where(peak[:, None], np.clip(step, -1.0, 1.0), 0.0)
+        new = x2 + step
+        r = PATCH_RADIUS + 2
+        inside = ((new[:, 0] >= r) & (new[:, 0] <= w - 1 - r) & (new[:, 1] >= r)
+                  & (new[:, 1] <= h - 1 - r))
+        x2[inside] = new[inside]
+    return x2
 
 
 def _window(p1: np.ndarray, p2: np.ndarray, radius: tuple[float, float]) -> np.ndarray:
     """(N1, N2) bool: candidate pairs within the search window."""
-    dx = np.abs(p2[None, :, 0] - p1[:, None, 0])
-    dy = np.abs(p2[None, :, 1] - p1[:, None, 1])
-    return (dx <= radius[0]) & (dy <= radius[1])
+    a, b = p1.astype(np.float32), p2.astype(np.float32)
+    ok = np.abs(b[None, :, 0] - a[:, None, 0]) <= radius[0]
+    ok &= np.abs(b[None, :, 1] - a[:, None, 1]) <= radius[1]
+    return ok
 
 
 def _mutual_best(similarity: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
