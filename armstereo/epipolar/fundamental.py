@@ -201,9 +201,9 @@ def check_not_degenerate(x1: np.ndarray, x2: np.ndarray, threshold: float) -> No
     need = max(MIN_OFF_PLANE_POINTS, int(np.ceil(MIN_OFF_PLANE_SHARE * len(x1))))
     if off < need:
         raise DegenerateError(f"one homography explains {len(x1) - off} of {len(x1)} inlier "
-                              f"correspondences (only {off} off it, need {need}): the points "
-                              "lie on one plane or the camera only rotated, so the epipolar "
-                              "geometry is undetermined")
+                              f"correspondences, leaving {off} off it (need {need}): the "
+                              "epipolar geometry is undetermined (the points lie on one plane, "
+                              "the camera only rotated, or there are too few matches)")
 
 
 def off_plane_count(x1: np.ndarray, x2: np.ndarray, threshold: float) -> int:

@@ -6,8 +6,9 @@ The path of the terrain-modeling thesis (and of the TASER abstract):
 1. match features (SIFT by default: photographs may differ by large viewpoint changes) and
    estimate F robustly (MAGSAC++ by default);
 2. rectify with Hartley's method (``cv2.stereoRectifyUncalibrated``), made orientation-safe:
-   no mirror image, no upside-down image, and the view whose points lie further right becomes
-   "left" so disparities are positive; the right image is shifted so the matched features'
+   no mirror image, no upside-down image, and the view taken from further left becomes "left"
+   (decided by cheirality, see :func:`_second_camera_side`), so near points get the larger
+   disparities as the matcher assumes; the right image is shifted so the matched features'
    disparities start at :data:`DISPARITY_MARGIN_PX`;
 3. match the rectified pair with :func:`armstereo.stereo.birchfield`;
 4. triangulate every matched pixel through the inverse rectifying homographies:
@@ -96,17 +97,21 @@ def estimate_from_images(image1: np.ndarray, image2: np.ndarray, *, detector: st
 
 
 def rectify_uncalibrated(image1: np.ndarray, image2: np.ndarray, F: np.ndarray, x1: np.ndarray,
-                         x2: np.ndarray) -> UncalibratedRectification:
-    """Hartley-rectify two images from F and its inlier matches (see the module doc)."""
+                         x2: np.ndarray, *,
+                         focal_px: float | None = None) -> UncalibratedRectification:
+    """Hartley-rectify two images from F and its inlier matches (see the module doc).
+
+    ``focal_px`` only serves to tell which camera is on the left (cheirality through
+    ``cv2.recoverPose``); without it the image width is assumed, which is enough for that.
+    """
     size = (image1.shape[1], image1.shape[0])
     ok, H1, H2 = cv2.stereoRectifyUncalibrated(x1, x2, F, size, threshold=RECTIFY_THRESHOLD_PX)
     if not ok:
         raise EpipolarError("Hartley rectification failed for this fundamental matrix")
-    H1, H2 = _upright(H1, H2, size)
-    d = apply(H1, x1)[:, 0] - apply(H2, x2)[:, 0]
-    swapped = bool(np.median(d) < 0)
-    if swapped:  # view 2's points lie further right: it is the left view
-        H1, H2 = _mirror(H2, size), _mirror(H1, size)
+    H1, H2 = _upright(_positive(H1, size), _positive(H2, size), size)
+    swapped = _second_camera_side(F, x1, x2, H1, size, focal_px) < 0
+    if swapped:  # camera 2 sits left of camera 1: image 2 is the left view
+        H1, H2 = H2, H1
     xl, xr = (x2, x1) if swapped else (x1, x2)
     Hl, Hr = _place(H1, H2, xl, xr, size)
     il, ir = (image2, image1) if swapped else (image1, image2)
@@ -120,11 +125,21 @@ def rectify_uncalibrated(image1: np.ndarray, image2: np.ndarray, F: np.ndarray, 
         (float(disp.min()), float(disp.max())), float(np.median(np.abs(pl[:, 1] - pr[:, 1]))))
 
 
+def _centre(size: tuple[int, int]) -> np.ndarray:
+    return np.array([[(size[0] - 1) / 2.0, (size[1] - 1) / 2.0]])
+
+
+def _positive(H: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """H scaled so the image centre maps with w > 0 (oriented projective geometry: points in
+    front keep their side, so directions at infinity keep their sign)."""
+    w = (H @ np.r_[_centre(size)[0], 1.0])[2]
+    return H if w > 0 else -H
+
+
 def _jacobian_at_centre(H: np.ndarray, size: tuple[int, int]) -> np.ndarray:
-    c = np.array([[(size[0] - 1) / 2.0, (size[1] - 1) / 2.0]])
-    e = 1.0
-    return np.column_stack([(apply(H, c + [e, 0]) - apply(H, c))[0],
-                            (apply(H, c + [0, e]) - apply(H, c))[0]]) / e
+    c = _centre(size)
+    return np.column_stack([(apply(H, c + [1.0, 0]) - apply(H, c))[0],
+                            (apply(H, c + [0, 1.0]) - apply(H, c))[0]])
 
 
 def _upright(H1: np.ndarray, H2: np.ndarray, size: tuple[int, int]):
@@ -139,10 +154,19 @@ def _upright(H1: np.ndarray, H2: np.ndarray, size: tuple[int, int]):
     return fix @ H1, fix @ H2
 
 
-def _mirror(H: np.ndarray, size: tuple[int, int]) -> np.ndarray:
-    """Turn a swapped pair's homography by a half turn: the new left view's points then lie
-    further right, as a left view's must (rows stay rows)."""
-    return np.diag([-1.0, -1.0, 1.0]) @ H
+def _second_camera_side(F, x1, x2, H1, size, focal_px: float | None) -> float:
+    """Sign of the rectified x direction in which camera 2's centre lies, seen from camera 1.
+
+    F alone cannot tell (a projective reconstruction may be mirrored in depth); cheirality can:
+    ``cv2.recoverPose`` picks the motion that puts the matched points in front of both cameras,
+    and the oriented epipole ``K c2`` goes through the (w > 0) rectifying homography.
+    """
+    w, h = size
+    f = float(focal_px) if focal_px else float(w)
+    K = np.array([[f, 0.0, (w - 1) / 2.0], [0.0, f, (h - 1) / 2.0], [0.0, 0.0, 1.0]])
+    _, R, t, _ = cv2.recoverPose(K.T @ F @ K, x1, x2, K)
+    c2 = -R.T @ t.ravel()
+    return float((H1 @ K @ c2)[0])
 
 
 def _place(H1, H2, xl, xr, size):
@@ -215,7 +239,7 @@ def reconstruct_images(image1: np.ndarray, image2: np.ndarray, *,
         if v is not None and not (math.isfinite(v) and v > 0):
             raise ConfigError(f"the {name} must be > 0, got {v}")
     F, x1, x2 = estimate_from_images(image1, image2, detector=detector, method=method)
-    rect = rectify_uncalibrated(image1, image2, F, x1, x2)
+    rect = rectify_uncalibrated(image1, image2, F, x1, x2, focal_px=focal_px)
     disparity = _dense_disparity(rect)
     pix_l, pix_r, colors = _dense_correspondences(rect, disparity)
     med = float(np.median(sampson_distance(F, x1, x2)))
