@@ -143,13 +143,12 @@ def harris_corners(image: np.ndarray, max_corners: int = DEFAULT_MAX_FEATURES,
     return pts[inside]
 
 
-def normalised_patches(image: np.ndarray, pts: np.ndarray,
-                       radius: int = PATCH_RADIUS) -> np.ndarray:
-    """``(N, (2r+1)^2)`` float32 patches around ``pts`` (sampled bilinearly at the sub-pixel
-    positions), zero mean and unit norm; flat patches are all zeros (NCC 0 with anything)."""
+def sample_patches(image: np.ndarray, pts: np.ndarray, radius: int) -> np.ndarray:
+    """``(N, 2r+1, 2r+1)`` float32 grey values around ``pts`` ((N, 2) px), sampled bilinearly
+    at the sub-pixel positions."""
     size = 2 * radius + 1
     if len(pts) == 0:
-        return np.zeros((0, size * size), np.float32)
+        return np.zeros((0, size, size), np.float32)
     offs = np.arange(-radius, radius + 1, dtype=np.float32)
     chunk = PATCH_CHUNK // size  # cv2.remap takes fewer than 32767 map rows
     parts = []
@@ -159,10 +158,22 @@ def normalised_patches(image: np.ndarray, pts: np.ndarray,
         my = np.broadcast_to(p[:, 1, None, None] + offs[None, :, None], (len(p), size, size))
         parts.append(cv2.remap(image, np.ascontiguousarray(mx.reshape(-1, size)),
                                np.ascontiguousarray(my.reshape(-1, size)), cv2.INTER_LINEAR))
-    patches = np.vstack(parts).astype(np.float32).reshape(len(pts), size * size)
-    patches -= patches.mean(axis=1, keepdims=True)
-    norm = np.linalg.norm(patches, axis=1, keepdims=True)
-    return np.divide(patches, norm, out=np.zeros_like(patches), where=norm > 1e-6)
+    return np.vstack(parts).astype(np.float32).reshape(len(pts), size, size)
+
+
+def _normalise(patches: np.ndarray) -> np.ndarray:
+    """Flatten the last two axes and make each patch zero-mean, unit-norm (flat ones: zeros)."""
+    flat = patches.reshape(*patches.shape[:-2], -1)
+    flat = flat - flat.mean(axis=-1, keepdims=True)
+    norm = np.sqrt(np.einsum("...p,...p->...", flat, flat))[..., None]
+    return np.divide(flat, norm, out=np.zeros_like(flat), where=norm > 1e-6)
+
+
+def normalised_patches(image: np.ndarray, pts: np.ndarray,
+                       radius: int = PATCH_RADIUS) -> np.ndarray:
+    """``(N, (2r+1)^2)`` float32 patches around ``pts`` (sampled bilinearly at the sub-pixel
+    positions), zero mean and unit norm; flat patches are all zeros (NCC 0 with anything)."""
+    return _normalise(sample_patches(image, pts, radius))
 
 
 def _match_harris(g1, g2, m1, m2, max_features, ratio, min_ncc, search_radius) -> Matches:
@@ -201,10 +212,13 @@ def refine_ncc(g1: np.ndarray, g2: np.ndarray, x1: np.ndarray, x2: np.ndarray,
                          offsets[:, 0], offsets[:, 1], np.ones(9)])
     fit = np.linalg.pinv(A)  # (6, 9): quadratic coefficients from the 9 samples
     h, w = g2.shape
+    r, size = PATCH_RADIUS, 2 * PATCH_RADIUS + 1
     for _ in range(iterations):
-        shifted = (x2[:, None, :] + offsets[None]).reshape(-1, 2)  # (N * 9, 2)
-        cand = normalised_patches(g2, shifted).reshape(len(x2), 9, -1)
-        ncc = np.einsum("nkp,np->nk", cand, ref)
+        # one patch a pixel wider all round holds the 9 one-pixel-shifted windows
+        big = sample_patches(g2, x2, r + 1)
+        cand = np.stack([big[:, 1 + dy:1 + dy + size, 1 + dx:1 + dx + size]
+                         for dx, dy in offsets.astype(int)], axis=1)
+        ncc = np.einsum("nkp,np->nk", _normalise(cand), ref)
         a, b, c, d, e, _ = fit @ ncc.T
         det = 4 * a * b - c * c
         peak = (a < 0) & (det > 0)
@@ -212,9 +226,8 @@ def refine_ncc(g1: np.ndarray, g2: np.ndarray, x1: np.ndarray, x2: np.ndarray,
             step = np.column_stack([(c * e - 2 * b * d) / det, (c * d - 2 * a * e) / det])
         step = np.where(peak[:, None], np.clip(step, -1.0, 1.0), 0.0)
         new = x2 + step
-        r = PATCH_RADIUS + 2
-        inside = ((new[:, 0] >= r) & (new[:, 0] <= w - 1 - r) & (new[:, 1] >= r)
-                  & (new[:, 1] <= h - 1 - r))
+        inside = ((new[:, 0] >= r + 2) & (new[:, 0] <= w - 3 - r) & (new[:, 1] >= r + 2)
+                  & (new[:, 1] <= h - 3 - r))
         x2[inside] = new[inside]
     return x2
 

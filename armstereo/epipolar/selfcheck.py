@@ -26,9 +26,10 @@ Verdicts:
   :data:`MIN_INLIERS` consistent matches).
 
 Lens distortion is removed from the images first. Views that differ by more than
-:data:`PREWARP_MIN_ROTATION_DEG` are matched after rotating view 2 into view 1's orientation
-(through the recorded rotation, which is only wrong by the small error being looked for), so
-the rotation-sensitive Harris/NCC matcher also works on pairs taken with a turned wrist.
+:data:`PREWARP_MIN_ROTATION_DEG` are matched after warping view 2 onto view 1 with the
+homography the recorded poses predict (see :func:`_prewarp`; the poses are only wrong by the
+small error being looked for), so the rotation-sensitive Harris/NCC matcher also works on pairs
+taken with a turned wrist or from converging viewpoints.
 """
 
 from __future__ import annotations
@@ -195,20 +196,59 @@ def _inliers(x1: np.ndarray, x2: np.ndarray, method: str):
 
 def _matches(image1, image2, intr1: Intrinsics, intr2: Intrinsics, T1, T2, detector):
     """Matches in undistorted pixel coordinates of both cameras ((N, 2) each)."""
-    R_c1_c2 = T1[:3, :3].T @ T2[:3, :3]
-    angle = math.degrees(math.acos(min(1.0, max(-1.0, (np.trace(R_c1_c2) - 1) / 2))))
-    turn = angle > PREWARP_MIN_ROTATION_DEG
-    if not (turn or intr1.has_distortion or intr2.has_distortion):
+    H = _prewarp(intr1, intr2, T1, T2)
+    if H is None and not (intr1.has_distortion or intr2.has_distortion):
         m = match_features(image1, image2, detector)
         return m.x1, m.x2
-    u1, valid1 = _remap(image1, intr1, np.eye(3), intr1.K)
-    R = R_c1_c2 if turn else np.eye(3)  # view 2 seen with view 1's orientation
-    K_new = intr1.K if turn else intr2.K
-    u2, valid2 = _remap(image2, intr2, R, K_new)
+    u1, valid1 = _undistort(image1, intr1)
+    u2, valid2 = _undistort(image2, intr2)
+    if H is not None:  # view 2 resampled on view 1's pixel grid: u2w(x) = u2(H x)
+        flags = cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP
+        u2 = cv2.warpPerspective(u2, H, intr1.size, flags=flags)
+        valid2 = cv2.warpPerspective(valid2.astype(np.uint8), H, intr1.size,
+                                     flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP) > 0
+        valid2 = cv2.erode(valid2.astype(np.uint8), np.ones((9, 9), np.uint8)).astype(bool)
     m = match_features(u1, u2, detector, mask1=valid1, mask2=valid2)
-    # back from the rotated view to view 2's undistorted pixels: x2 ~ K2 R^T K_new^-1 x2w
-    back = intr2.K @ R.T @ np.linalg.inv(K_new)
-    return m.x1, apply(back, m.x2)
+    return m.x1, (m.x2 if H is None else apply(H, m.x2))
+
+
+def _prewarp(intr1: Intrinsics, intr2: Intrinsics, T1: np.ndarray,
+             T2: np.ndarray) -> np.ndarray | None:
+    """Homography view-1 pixel -> view-2 pixel (undistorted) that undoes the recorded turn
+    between the views, or None when they turn by less than PREWARP_MIN_ROTATION_DEG.
+
+    It is the homography of the plane facing camera 1 through the point where the two optical
+    axes pass closest (a verging pair looks at the scene there), or of the plane at infinity
+    (a pure rotation) when the axes do not converge in front of camera 1.
+    """
+    R = T2[:3, :3].T @ T1[:3, :3]  # camera 1 -> camera 2
+    angle = math.degrees(math.acos(min(1.0, max(-1.0, (np.trace(R) - 1) / 2))))
+    if angle <= PREWARP_MIN_ROTATION_DEG:
+        return None
+    t = T2[:3, :3].T @ (T1[:3, 3] - T2[:3, 3])
+    depth = _fixation_depth(T1, T2)
+    M = R if depth is None else R + np.outer(t, [0.0, 0.0, 1.0 / depth])
+    return intr2.K @ M @ np.linalg.inv(intr1.K)
+
+
+def _fixation_depth(T1: np.ndarray, T2: np.ndarray) -> float | None:
+    """Depth along camera 1's axis of the axes' closest approach; None if not in front."""
+    a1, a2 = T1[:3, 2], T2[:3, 2]
+    w = T1[:3, 3] - T2[:3, 3]
+    b = float(a1 @ a2)
+    den = 1.0 - b * b
+    if den < math.sin(math.radians(PREWARP_MIN_ROTATION_DEG)) ** 2:
+        return None  # (nearly) parallel axes
+    s = (b * float(a2 @ w) - float(a1 @ w)) / den
+    return s if s > 0 else None
+
+
+def _undistort(image: np.ndarray, intr: Intrinsics) -> tuple[np.ndarray, np.ndarray]:
+    """The image without lens distortion (same K) and its validity mask, eroded so features
+    keep clear of the fill."""
+    if not intr.has_distortion:
+        return image, np.ones(image.shape[:2], bool)
+    return _remap(image, intr, np.eye(3), intr.K)
 
 
 def _remap(image: np.ndarray, intr: Intrinsics, R: np.ndarray, K_new: np.ndarray):
