@@ -92,3 +92,21 @@ def test_json_keys(results):
     d = results["roll"].as_dict()
     assert {"pair", "median_sampson_px", "verdict"} <= d.keys()
     assert d["correction"]["rotation_deg"][2] == pytest.approx(1.0, abs=0.1)
+
+
+def test_real_photographs_with_their_published_cameras():
+    """Held out from every tuning: temple ring views 22.5 degrees apart on converging rays."""
+    from armstereo.camera_model import Intrinsics
+    from armstereo.transforms import invert
+
+    from .test_uncalibrated import temple
+
+    im1, im2, _, (K1, T1), (K2, T2) = temple("0008", "0009")
+    i1, i2 = Intrinsics(640, 480, K1), Intrinsics(640, 480, K2)
+    c = check_views(im1, im2, i1, T1, i2, T2)
+    assert c.verdict == "ok" and c.median_sampson_px < 0.3 and c.inliers >= 40
+    # "recorded" poses with the camera turned 1 degree left of the truth
+    D = make_T(rot_y(np.radians(1.0)), [0, 0, 0])
+    c = check_views(im1, im2, i1, T1 @ invert(D), i2, T2 @ invert(D))
+    assert c.verdict == "miscalibrated"
+    assert c.correction.rotation_deg[1] == pytest.approx(1.0, abs=0.5)
