@@ -76,14 +76,14 @@ class CameraCorrection:
                 tail = " (seen from behind the camera)" if k == 2 else ""
                 further = "" if k == 2 else " further"
                 out.append(f"the camera {verb} {abs(rot[k]):.2f} deg{further} {way}{tail} than "
-                           f"the mount says (+-{rs[k]:.2f})")
+                           f"the mount says (+-{max(rs[k], 0.01):.2f})")
         tr, ts, tdet = self.translation_mm, self.translation_sigma_mm, self.translation_determined
         for k, (pos, neg) in enumerate((("right", "left"), ("down", "up"),
                                         ("forward", "back"))):
             if tdet[k] and abs(tr[k]) >= max(SIGNIFICANT_SIGMAS * ts[k], MIN_REPORTED_MM):
                 way = pos if tr[k] > 0 else neg
                 out.append(f"the camera sits {abs(tr[k]):.1f} mm further {way} than the mount "
-                           f"says (+-{ts[k]:.1f})")
+                           f"says (+-{max(ts[k], 0.1):.1f})")
         hidden = [f"rotation about camera {a}" for a, d in zip(AXES, rdet, strict=True) if not d]
         hidden += [f"translation along camera {a}" for a, d in zip(AXES, tdet, strict=True)
                    if not d]
