@@ -96,22 +96,28 @@ def estimate_fundamental(x1: np.ndarray, x2: np.ndarray, method: str, *,
 
         F = consensus(x1, x2, method, threshold=threshold, confidence=confidence,
                       max_iters=max_iters, seed=seed)
-    else:  # gold
-        from armstereo.epipolar.gold import gold_standard
-
-        F0 = _opencv(x1, x2, "magsac", threshold, confidence, max_iters)
-        start = sampson_distance(F0, x1, x2) < threshold
-        if start.sum() < MIN_CORRESPONDENCES:
-            raise DegenerateError(f"only {int(start.sum())} correspondences fit the robust start "
-                                  f"within {threshold:g} px; the Gold Standard needs "
-                                  f"{MIN_CORRESPONDENCES}")
-        F = gold_standard(F0, x1[start], x2[start])
+    else:
+        F = _gold(x1, x2, threshold, confidence, max_iters)
     F = normalized(F)
     mask = sampson_distance(F, x1, x2) < threshold
     if not allow_degenerate:
         check_not_degenerate(x1[mask] if method != "8point" else x1,
                              x2[mask] if method != "8point" else x2, threshold)
     return F, mask
+
+
+def _gold(x1: np.ndarray, x2: np.ndarray, threshold: float, confidence: float,
+          max_iters: int) -> np.ndarray:
+    """Gold Standard refinement of the MAGSAC++ estimate on its inliers."""
+    from armstereo.epipolar.gold import gold_standard
+
+    F0 = _opencv(x1, x2, "magsac", threshold, confidence, max_iters)
+    start = sampson_distance(F0, x1, x2) < threshold
+    if start.sum() < MIN_CORRESPONDENCES:
+        raise DegenerateError(f"only {int(start.sum())} correspondences fit the robust start "
+                              f"within {threshold:g} px; the Gold Standard needs "
+                              f"{MIN_CORRESPONDENCES}")
+    return gold_standard(F0, x1[start], x2[start])
 
 
 def _check_options(method: str, threshold: float, confidence: float, max_iters: int) -> None:

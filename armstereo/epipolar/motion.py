@@ -23,6 +23,7 @@ import numpy as np
 
 from armstereo.camera_model import Intrinsics
 from armstereo.epipolar.projective import check_pose
+from armstereo.errors import PreflightError
 
 KINDS = ("rotation_only", "lateral", "forward", "general")
 MIN_BASELINE_M = 0.005  # below this the pair counts as a pure rotation
@@ -140,8 +141,6 @@ def require_stereo_motion(T_base_cam1: np.ndarray, T_base_cam2: np.ndarray,
     closer than ``min_baseline``); otherwise returns the report, whose ``warnings`` (an epipole
     inside the image, a forward motion) the caller shows before moving.
     """
-    from armstereo.errors import PreflightError
-
     report = classify_motion(T_base_cam1, T_base_cam2, intrinsics1=intrinsics,
                              min_baseline=min_baseline)
     if report.kind == "rotation_only":
