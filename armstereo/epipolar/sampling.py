@@ -9,9 +9,11 @@ OpenCV's 7-point algorithm (up to three real solutions per sample).
   sigma = ``T / INLIER_SIGMAS`` (px), outliers uniform over the image span ``v`` (px); the
   inlier share ``gamma`` is re-estimated per hypothesis by a few EM steps.
 
-The best hypothesis is refitted on its inliers (``e < T``) with the normalised 8-point algorithm
-until the inlier set stops changing (at most :data:`REFIT_ROUNDS` times). Sampling stops when
-the usual RANSAC bound says a clean sample has been drawn with probability ``confidence``.
+Each new best hypothesis is locally optimised (LO-RANSAC): refitted on the points within
+``2 T`` by the normalised 8-point algorithm while that lowers the cost. The winner is refitted
+once more until its inlier set stops changing (at most :data:`REFIT_ROUNDS` times). Sampling
+stops when the usual RANSAC bound says a clean sample has been drawn with probability
+``confidence``, but not before :data:`MIN_SAMPLES` samples.
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ import cv2
 import numpy as np
 
 from armstereo.epipolar.errors import DegenerateError
-from armstereo.epipolar.fundamental import refit_on_inliers
+from armstereo.epipolar.fundamental import eight_point, refit_on_inliers
 from armstereo.epipolar.metrics import sampson_homogeneous
 from armstereo.epipolar.projective import homogeneous
 
@@ -30,6 +32,10 @@ SAMPLE_SIZE = 7
 INLIER_SIGMAS = 1.96  # T is the 95 % bound of a Gaussian inlier residual
 EM_STEPS = 5
 REFIT_ROUNDS = 3
+LO_ROUNDS = 5
+LO_THRESHOLD_FACTOR = 2.0
+MIN_SAMPLES = 100  # RANSAC's bound assumes every clean sample gives a good F; noisy ones don't
+MIN_LO_POINTS = 16  # the local refit needs clearly more than the 8 points of a minimal fit
 COSTS = ("mlesac", "mapsac")
 
 
@@ -48,13 +54,14 @@ def consensus(x1: np.ndarray, x2: np.ndarray, cost: str, *, threshold: float,
     h1, h2 = homogeneous(x1), homogeneous(x2)
     best_F, best_cost, most_inliers = None, np.inf, 0
     needed, it = max_iters, 0
-    while it < min(needed, max_iters):
+    while it < min(max(needed, MIN_SAMPLES), max_iters):
         it += 1
         sample = rng.choice(n, SAMPLE_SIZE, replace=False)
         for F in _seven_point(x1[sample], x2[sample]):
             e = sampson_homogeneous(F, h1, h2)
             c = _score(e, cost, threshold, span)
             if c < best_cost:
+                F, c, e = _local_optimisation(F, c, e, x1, x2, h1, h2, cost, threshold, span)
                 best_F, best_cost = F, c
             inliers = int(np.count_nonzero(e < threshold))
             if inliers > most_inliers:  # the stopping bound uses the best inlier share seen
@@ -64,6 +71,26 @@ def consensus(x1: np.ndarray, x2: np.ndarray, cost: str, *, threshold: float,
         raise DegenerateError(f"no 7-point sample of the {n} correspondences gave a fundamental "
                               "matrix")
     return refit_on_inliers(best_F, x1, x2, threshold, rounds=REFIT_ROUNDS)
+
+
+def _local_optimisation(F, c, e, x1, x2, h1, h2, cost: str, threshold: float, span: float):
+    """LO-RANSAC step for a new best hypothesis: refit F by the 8-point algorithm on the points
+    within LO_THRESHOLD_FACTOR thresholds while that lowers the cost (a 7-point sample of noisy
+    points is rarely the best F)."""
+    for _ in range(LO_ROUNDS):
+        mask = e < LO_THRESHOLD_FACTOR * threshold  # wider: a rough model misses good points
+        if mask.sum() < MIN_LO_POINTS:
+            break
+        try:
+            F_new = eight_point(x1[mask], x2[mask])
+        except DegenerateError:
+            break
+        e_new = sampson_homogeneous(F_new, h1, h2)
+        c_new = _score(e_new, cost, threshold, span)
+        if c_new >= c:
+            break
+        F, c, e = F_new, c_new, e_new
+    return F, c, e
 
 
 def _seven_point(x1: np.ndarray, x2: np.ndarray) -> list[np.ndarray]:
