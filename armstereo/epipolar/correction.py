@@ -74,8 +74,7 @@ class CameraCorrection:
                 way = pos if rot[k] > 0 else neg
                 verb = "is rolled" if k == 2 else "looks"
                 tail = " (seen from behind the camera)" if k == 2 else ""
-                further = "" if k == 2 else " further"
-                out.append(f"the camera {verb} {abs(rot[k]):.2f} deg{further} {way}{tail} than "
+                out.append(f"the camera {verb} {abs(rot[k]):.2f} deg further {way}{tail} than "
                            f"the mount says (+-{max(rs[k], 0.01):.2f})")
         tr, ts, tdet = self.translation_mm, self.translation_sigma_mm, self.translation_determined
         for k, (pos, neg) in enumerate((("right", "left"), ("down", "up"),

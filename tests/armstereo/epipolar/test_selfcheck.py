@@ -48,7 +48,7 @@ def test_one_degree_roll_is_miscalibrated_and_the_correction_rolls_clockwise(res
     assert c.verdict == "miscalibrated"
     assert c.median_sampson_px > MISCALIBRATION_THRESHOLD_PX
     assert c.correction.rotation_deg[2] == pytest.approx(1.0, abs=0.1)
-    assert any(re.search(r"rolled (0\.9|1\.0)\d deg clockwise", s)
+    assert any(re.search(r"rolled (0\.9|1\.0)\d deg further clockwise", s)
                for s in c.correction.describe()), c.correction.describe()
 
 
