@@ -71,8 +71,8 @@ def test_command_defaults_show_in_help_and_apply(capsys):
 
 
 @pytest.mark.parametrize("argv,message", [
-    (["--camera-noise", "-1"], "--camera-noise must be a finite number >= 0"),
-    (["--joint-noise", "nan"], "--joint-noise must be a finite number >= 0"),
+    (["--camera-noise", "-1"], "--camera-noise must be >= 0 grey levels"),
+    (["--joint-noise", "nan"], "--joint-noise must be a finite number"),
     (["--camera", "opencv:0", "--resolution", "640by480"], "--resolution must be"),
     (["--camera", "opencv:0", "--white-balance", "0"], "--white-balance must be > 0"),
     (["--camera", "webcam"], "unknown camera"),

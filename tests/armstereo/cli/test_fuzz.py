@@ -17,11 +17,12 @@ from pathlib import Path
 import pytest
 
 from armstereo.cli.main import build_parser, main
-from tests.support import MIDDLEBURY, SAMPLE_RECORDING
+from tests.support import DATA, MIDDLEBURY, SAMPLE_RECORDING
 
 DOCUMENTED_EXIT_CODES = {0, 2, 3, 4, 5, 6, 130}  # README, "Errors and exit codes"
 HOSTILE = ["0", "-1", "nan", "inf", "1e308", "", "abc", "{missing}", "{dir}", "{text}"]
 TSUKUBA = MIDDLEBURY / "tsukuba"
+TEMPLE = DATA / "temple_ring"
 
 # A fast, valid command line per command; {out} is a fresh path the command may create.
 BASELINES: dict[str, list[str]] = {
@@ -36,6 +37,10 @@ BASELINES: dict[str, list[str]] = {
     "plan": ["plan", "--near", "0.4", "--far", "0.8", "--depth-accuracy", "0.004"],
     "sweep": ["sweep", "--baselines", "0.05", "--distances", "1.0", "--out", "{out}"],
     "robot-info": ["robot-info", "--host", "127.0.0.1", "--timeout", "0.5"],
+    "check": ["check", str(SAMPLE_RECORDING)],
+    "reconstruct-images": ["reconstruct-images", str(TEMPLE / "templeSR0008.png"),
+                           str(TEMPLE / "templeSR0009.png"), "--out", "{out}"],
+    "study": ["study", "epipolar", "--trials", "1", "--points", "20", "--out", "{out}"],
 }
 
 
