@@ -43,6 +43,7 @@ class SceneCloud:
     frame_id: str
     source: str
     metadata: dict[str, str] = field(default_factory=dict)
+    timestamp_ns: int = 0  # when the cloud was taken (MCAP log time), 0 if unknown
 
 
 def load_cloud(path: str | Path) -> SceneCloud:
@@ -95,7 +96,8 @@ def check_cloud(cloud: SceneCloud) -> SceneCloud:
         raise ConfigError(f"{cloud.source}: the bulk of the cloud spans {extent:.1f} units; "
                           f"more than {MAX_EXTENT_M:.0f} m for a tabletop, so it is probably "
                           "not in metres")
-    return SceneCloud(pts, colors, cloud.frame_id, cloud.source, dict(cloud.metadata))
+    return SceneCloud(pts, colors, cloud.frame_id, cloud.source, dict(cloud.metadata),
+                      int(cloud.timestamp_ns))
 
 
 def _read_ply_cloud(path: Path) -> SceneCloud:
@@ -130,4 +132,5 @@ def _read_mcap_cloud(path: Path) -> SceneCloud:
         log.warning("%s: the %s cloud has no frame_id; taking it as '%s'", path.name,
                     TOPIC_POINTS, FRAME_BASE)
         frame = FRAME_BASE
-    return SceneCloud(c.points, c.colors_bgr, frame, str(path), dict(rec.metadata))
+    return SceneCloud(c.points, c.colors_bgr, frame, str(path), dict(rec.metadata),
+                      int(c.timestamp_ns))

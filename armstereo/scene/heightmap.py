@@ -20,9 +20,9 @@ the grid's x, y, z axes.
 
 from __future__ import annotations
 
+import io
 import math
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
@@ -68,16 +68,15 @@ class Occupancy:
     cell_m: float
     T_base_grid: np.ndarray
 
-    def save(self, path: str | Path) -> Path:
-        """Write ``occupancy.npz`` (keys ``occupancy``, ``cell_m``, ``T_base_grid``,
-        ``values``: the legend)."""
-        path = Path(path)
-        with open(path, "wb") as f:
-            np.savez_compressed(f, occupancy=self.grid, cell_m=np.float64(self.cell_m),
-                                T_base_grid=self.T_base_grid,
-                                values=np.array([f"{UNKNOWN}=unknown", f"{FREE}=free",
-                                                 f"{OCCUPIED}=occupied"]))
-        return path
+    def npz_bytes(self) -> bytes:
+        """The ``occupancy.npz`` file: keys ``occupancy`` (nz, ny, nx) int8, ``cell_m``,
+        ``T_base_grid`` (4, 4) and ``values`` (the legend, as text)."""
+        buf = io.BytesIO()
+        np.savez_compressed(buf, occupancy=self.grid, cell_m=np.float64(self.cell_m),
+                            T_base_grid=self.T_base_grid,
+                            values=np.array([f"{UNKNOWN}=unknown", f"{FREE}=free",
+                                             f"{OCCUPIED}=occupied"]))
+        return buf.getvalue()
 
 
 def height_map(uvh: np.ndarray, T_base_plane: np.ndarray, cell_m: float) -> HeightMap:
