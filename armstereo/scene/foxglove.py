@@ -51,7 +51,13 @@ from mcap_protobuf.schema import register_schema
 
 from armstereo import __version__
 from armstereo.errors import ConfigError
-from armstereo.recording.schemas import FRAME_BASE, METADATA_NAME, PROTOBUF, TOPIC_POINTS
+from armstereo.recording.schemas import (
+    FORMAT_VERSION,
+    FRAME_BASE,
+    METADATA_NAME,
+    PROTOBUF,
+    TOPIC_POINTS,
+)
 from armstereo.scene.analysis import SceneAnalysis, SceneObject
 from armstereo.scene.cloud import SceneCloud
 from armstereo.scene.heightmap import OCCUPIED, UNKNOWN
@@ -80,7 +86,8 @@ def write_scene_mcap(path: str | Path, analysis: SceneAnalysis, cloud: SceneClou
     t_ns = int(cloud.timestamp_ns)
     meta = {k: v for k, v in cloud.metadata.items()
             if k not in ("format_version", "armstereo_version")}
-    meta.update({"kind": "scene_analysis", "armstereo_version": __version__,
+    meta.update({"kind": "scene_analysis", "format_version": FORMAT_VERSION,
+                 "armstereo_version": __version__,
                  "source": analysis.source, "scene": json.dumps(analysis.as_dict())})
     messages = [(TOPIC_POINTS, point_cloud_message(cloud, t_ns)),
                 (TOPIC_OBJECTS, scene_update(analysis, t_ns)),

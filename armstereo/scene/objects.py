@@ -5,10 +5,12 @@ the minimum-area rectangle of the object's points projected onto the plane, its 
 of the object above the plane. Steps, each guarding against a known stereo artefact:
 
 1. **Outliers**: a statistical outlier filter in 3-D (mean distance to the ``SOR_NEIGHBOURS``
-   nearest neighbours more than ``SOR_SIGMAS`` standard deviations above the cluster's mean)
-   drops thin streaks and stray points, which would otherwise widen the footprint. It does not
-   trim by percentiles, which would shrink round footprints (the 0.5 % quantiles of a disc lie
-   2 mm inside a 10 cm disc).
+   nearest neighbours more than ``SOR_MEDIAN_FACTOR`` times the cluster's median) drops stray
+   points and sparse streaks, which would otherwise widen the footprint. The limit is relative
+   to the median, not mean + k sigma: on a clean, regular cloud the latter strips the whole rim
+   (rim points have fewer close neighbours), shrinking every footprint by a point spacing. It
+   does not trim by percentiles either, which would shrink round footprints (the 0.5 %
+   quantiles of a disc lie 2 mm inside a 10 cm disc).
 2. **Top**: a flat top (box, cylinder) shows as a sharp peak of the heights near the top; if
    the peak holds at least ``FLAT_SHARE`` of the points in the top band, the top is the
    median of the peak (immune to the mismatches that scatter above and below an edge).
@@ -31,7 +33,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 SOR_NEIGHBOURS = 8
-SOR_SIGMAS = 2.0
+SOR_MEDIAN_FACTOR = 2.0  # a point whose neighbours are this much farther than usual is an outlier
 SOR_STAT_SAMPLE = 4000  # points whose neighbour distances set the outlier limit
 RIM_CELL_M = 0.002  # raster for finding the footprint's rim
 RIM_CELLS = 3  # rim width in cells (points deeper inside cannot move the footprint)
@@ -91,11 +93,11 @@ def measure_shape(uvh: np.ndarray, noise_m: float = 0.0) -> ObjectShape:
 
 def outlier_mask(points: np.ndarray, *, seed: int = 0) -> np.ndarray:
     """True for points whose mean distance to their ``SOR_NEIGHBOURS`` nearest neighbours is
-    not an outlier (above mean + ``SOR_SIGMAS`` std of that distance over the cluster).
+    not an outlier (above ``SOR_MEDIAN_FACTOR`` times its median over the cluster).
 
     Only points near the footprint's rim can move the footprint, so only those are tested
     (the rest are kept); the mean and std come from a seeded sample of the whole cluster, so
-    the test is the same as testing every point, at a fraction of the cost.
+    the limit is the same as when every point is tested, at a fraction of the cost.
     """
     n = len(points)
     if n <= SOR_NEIGHBOURS + 1:
@@ -104,7 +106,7 @@ def outlier_mask(points: np.ndarray, *, seed: int = 0) -> np.ndarray:
     rng = np.random.default_rng(seed)
     sample = points[rng.choice(n, size=min(n, SOR_STAT_SAMPLE), replace=False)]
     ref = tree.query(sample, k=SOR_NEIGHBOURS + 1)[0][:, 1:].mean(axis=1)
-    limit = ref.mean() + SOR_SIGMAS * ref.std()
+    limit = SOR_MEDIAN_FACTOR * float(np.median(ref))
     rim = np.flatnonzero(_rim_points(points[:, :2]))
     keep = np.ones(n, dtype=bool)
     if len(rim):
