@@ -1,14 +1,15 @@
 """Objects as connected groups of points: a voxel connected-components pass.
 
-Points are binned into cubic voxels of edge ``voxel_m``; voxels holding fewer than
-``min_voxel_points`` points are dropped as noise (the voxel analogue of DBSCAN's core-point
-rule); the remaining voxels are joined to their 26 neighbours and split into connected
-components (``scipy.sparse.csgraph``). Two points end up in one cluster when a chain of
-occupied voxels links them, i.e. when gaps between them are below one to two voxel edges —
-the same single-linkage idea as DBSCAN with ``eps`` ~ ``voxel_m`` and PCL's Euclidean cluster
-extraction, at a fraction of the cost (``bench/scene.py`` compares it with scikit-learn's
-DBSCAN on the same points). Voxels are sparse (sorted integer keys), so far outliers cost
-nothing.
+Points are binned into cubic voxels of edge ``voxel_m``; voxels holding at least
+``min_voxel_points`` points are *dense* (the voxel analogue of DBSCAN's core points); dense
+voxels are joined to their 26 neighbours and split into connected components
+(``scipy.sparse.csgraph``); a sparse voxel next to a dense one joins its component (DBSCAN's
+border points), a sparse voxel with no dense neighbour is noise. Two points end up in one
+cluster when a chain of occupied voxels links them, i.e. when the gaps between them are
+below one to two voxel edges: the same single-linkage idea as DBSCAN with ``eps`` ~
+``voxel_m`` and PCL's Euclidean cluster extraction, at a fraction of the cost
+(``bench/scene.py`` compares it with scikit-learn's DBSCAN on the same points). Voxels are
+sparse (sorted integer keys), so far outliers cost nothing.
 """
 
 from __future__ import annotations
@@ -58,8 +59,21 @@ def voxel_clusters(points: np.ndarray, voxel_m: float, *, min_voxel_points: int 
     _, comp = connected_components(graph, directed=False)
     voxel_label = np.full(len(keys), NOISE, dtype=np.int64)
     voxel_label[dense] = comp
+    voxel_label[~dense] = _border_labels(_unpack(keys[~dense]), keys_d, comp)
     labels = voxel_label[point_voxel]
     return _relabel_by_size(labels, min_cluster_points)
+
+
+def _border_labels(vox: np.ndarray, keys_d: np.ndarray, comp: np.ndarray) -> np.ndarray:
+    """Label of a dense neighbour for each sparse voxel (NOISE if it has none): like
+    DBSCAN's border points, a sparse voxel touching an object belongs to it."""
+    out = np.full(len(vox), NOISE, dtype=np.int64)
+    for off in np.vstack([_FORWARD, -_FORWARD]):
+        nb = _pack(vox + off)
+        pos = np.clip(np.searchsorted(keys_d, nb), 0, len(keys_d) - 1)
+        hit = (keys_d[pos] == nb) & (out == NOISE)
+        out[hit] = comp[pos[hit]]
+    return out
 
 
 def _pack(ijk: np.ndarray) -> np.ndarray:

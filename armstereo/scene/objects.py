@@ -11,10 +11,10 @@ of the object above the plane. Steps, each guarding against a known stereo artef
    (rim points have fewer close neighbours), shrinking every footprint by a point spacing. It
    does not trim by percentiles either, which would shrink round footprints (the 0.5 %
    quantiles of a disc lie 2 mm inside a 10 cm disc).
-2. **Top**: a flat top (box, cylinder) shows as a sharp peak of the heights near the top; if
-   the peak holds at least ``FLAT_SHARE`` of the points in the top band, the top is the
-   median of the peak (immune to the mismatches that scatter above and below an edge).
-   Otherwise (a curved top) it is the ``TOP_PERCENTILE`` of the heights.
+2. **Top**: a flat top (box, cylinder) shows as a sharp peak of the heights; the top is the
+   median of the highest such peak (immune to the mismatches that scatter above and below an
+   edge), unless more than a few per cent of the points stand clearly above it. Otherwise (a
+   curved top) it is the ``TOP_PERCENTILE`` of the heights (see :func:`top_height`).
 3. **Sphere**: one view sees a ball's upper cap only, and stereo loses its steep rim, so the
    footprint of a ball seen from above is several mm too small. If a least-squares sphere fits
    the points (``SPHERE_INLIER_SHARE`` within the noise band) and agrees with the footprint
@@ -38,10 +38,10 @@ SOR_STAT_SAMPLE = 4000  # points whose neighbour distances set the outlier limit
 RIM_CELL_M = 0.002  # raster for finding the footprint's rim
 RIM_CELLS = 3  # rim width in cells (points deeper inside cannot move the footprint)
 TOP_PERCENTILE = 99.5
-TOP_BAND_M = 0.005  # the top band searched for a flat peak (at least this, or 10x noise)
 PEAK_HALF_WIDTH_M = 0.001  # half width of a flat top's peak (at least this, or 3x noise)
 PEAK_BIN_M = 0.0005
-FLAT_SHARE = 0.6
+FLAT_PEAK_SHARE = 0.10  # a flat top puts this share of the object's points in one bin
+MAX_ABOVE_SHARE = 0.03  # more points than this above the flat level: not the top
 SPHERE_INLIER_SHARE = 0.6
 SPHERE_BAND_M = 0.001  # sphere inliers lie this close to the surface (or 3x noise)
 SPHERE_FOOTPRINT_RATIO = (0.85, 1.3)  # fitted diameter / measured footprint length
@@ -127,20 +127,26 @@ def _rim_points(uv: np.ndarray) -> np.ndarray:
 
 
 def top_height(h: np.ndarray, noise_m: float = 0.0) -> tuple[float, str]:
-    """(top height, "flat" | "curved") of heights ``h`` (m) above the plane (module doc)."""
+    """(top height, "flat" | "curved") of heights ``h`` (m) above the plane (module doc).
+
+    The flat level is the highest histogram bin holding ``FLAT_PEAK_SHARE`` of the points,
+    refined to the median of the points within the peak's half width; it stands only if at
+    most ``MAX_ABOVE_SHARE`` of the points lie clearly above it (else something real, not
+    scattered mismatches, stands higher, and the top is the ``TOP_PERCENTILE``).
+    """
     hi = float(np.percentile(h, TOP_PERCENTILE))
-    band = h[h >= hi - max(TOP_BAND_M, 10 * noise_m)]
     half = max(PEAK_HALF_WIDTH_M, 3 * noise_m)
-    edges = np.arange(band.min(), band.max() + PEAK_BIN_M, PEAK_BIN_M)
-    if len(edges) < 2:
-        return hi, "flat"
-    counts, edges = np.histogram(band, bins=edges)
-    mode = 0.5 * (edges[np.argmax(counts)] + edges[np.argmax(counts) + 1])
-    peak = band[np.abs(band - mode) <= half]
-    if len(peak) >= FLAT_SHARE * len(band):
-        m = float(np.median(peak))
-        return float(np.median(band[np.abs(band - m) <= half])), "flat"
-    return hi, "curved"
+    edges = np.arange(float(h.min()), float(h.max()) + 2 * PEAK_BIN_M, PEAK_BIN_M)
+    counts, edges = np.histogram(h, bins=edges)
+    peaks = np.flatnonzero(counts >= FLAT_PEAK_SHARE * len(h))
+    if len(peaks) == 0:
+        return hi, "curved"
+    level = 0.5 * (edges[peaks[-1]] + edges[peaks[-1] + 1])
+    for _ in range(2):
+        level = float(np.median(h[np.abs(h - level) <= half]))
+    if np.mean(h > level + 2 * half) > MAX_ABOVE_SHARE:
+        return hi, "curved"
+    return level, "flat"
 
 
 def footprint_rectangle(uv: np.ndarray):

@@ -23,6 +23,9 @@ from armstereo.scene.errors import SceneError
 
 RANSAC_SAMPLE = 20_000  # points scored per hypothesis (a seeded random subset)
 MIN_PLANE_SHARE = 0.05  # a support plane holds at least this share of the cloud
+# ... and at least this share of the best plane of any tilt: a level band through an inclined
+# table (a thin strip of it) must not pass for a table; a real table beside a wall does
+MIN_SHARE_OF_BEST = 0.25
 REFIT_ROUNDS = 3
 REFIT_SIGMAS = 3.0  # refit inliers: within this many residual RMS (never wider than RANSAC's)
 MIN_REFIT_THRESHOLD_M = 0.001
@@ -104,7 +107,7 @@ def fit_support_plane(points: np.ndarray, *, up=(0.0, 0.0, 1.0), max_tilt_deg: f
     cos_tilt = normals @ up_v
     support = _support(sample, normals, offsets, threshold_m)
     level = cos_tilt >= math.cos(math.radians(max_tilt_deg))
-    need = MIN_PLANE_SHARE * len(sample)
+    need = max(MIN_PLANE_SHARE * len(sample), MIN_SHARE_OF_BEST * support.max(initial=0))
     if not np.any(level & (support >= need)):
         raise SceneError(_no_level_plane(normals, support, cos_tilt, need, len(sample),
                                          max_tilt_deg, up_v))
@@ -138,7 +141,7 @@ def _support(sample: np.ndarray, normals: np.ndarray, offsets: np.ndarray,
 
 
 def _no_level_plane(normals, support, cos_tilt, need, n_sample, max_tilt_deg, up_v) -> str:
-    if len(normals) == 0 or support.max() < need:
+    if len(normals) == 0 or support.max() < MIN_PLANE_SHARE * n_sample:
         return (f"no support plane: no plane holds {MIN_PLANE_SHARE:.0%} of the "
                 f"{n_sample} points sampled (is there a table in the cloud?)")
     k = int(np.argmax(support))
