@@ -236,20 +236,19 @@ def _axis_yaw_deg(axis_base: np.ndarray) -> float:
 
 
 def _unobserved_outside(hmap: HeightMap) -> np.ndarray:
-    """Unknown height-map cells connected (4-neighbours) to the map's border: space outside
+    """Unobserved space around and in the height map, one cell wider on every side: the ring
+    outside the map plus the unknown cells connected (4-neighbours) to it, i.e. space outside
     the view, as opposed to shadows enclosed by seen table."""
-    unknown = (~np.isfinite(hmap.heights)).astype(np.uint8)
-    padded = np.pad(unknown, 1, constant_values=1)  # a ring of unknown joins every border cell
-    _, comp = cv2.connectedComponents(padded, connectivity=4)
-    return (comp == comp[0, 0])[1:-1, 1:-1] & (unknown > 0)
+    unknown = np.pad((~np.isfinite(hmap.heights)).astype(np.uint8), 1, constant_values=1)
+    _, comp = cv2.connectedComponents(unknown, connectivity=4)
+    return comp == comp[0, 0]
 
 
 def _touches(hmap: HeightMap, outside: np.ndarray, uv: np.ndarray) -> bool:
+    """True when unobserved outside space lies within PARTIAL_RING_CELLS of the points."""
     rows, cols = hmap.cell_of(uv)
-    h, w = outside.shape
-    ok = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
-    mask = np.zeros((h, w), dtype=np.uint8)
-    mask[rows[ok], cols[ok]] = 1
+    mask = np.zeros(outside.shape, dtype=np.uint8)
+    mask[np.clip(rows + 1, 0, outside.shape[0] - 1), np.clip(cols + 1, 0, outside.shape[1] - 1)] = 1
     size = 2 * PARTIAL_RING_CELLS + 1
     ring = cv2.dilate(mask, np.ones((size, size), np.uint8)).astype(bool)
     return bool(np.any(ring & outside))

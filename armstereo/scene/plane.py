@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from armstereo.errors import ConfigError
 from armstereo.scene.errors import SceneError
 
 RANSAC_SAMPLE = 20_000  # points scored per hypothesis (a seeded random subset)
@@ -80,10 +81,11 @@ def _dot(points: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 
 def unit_up(up) -> np.ndarray:
-    """``up`` as a unit 3-vector; SceneError if it is not three finite numbers, not zero."""
+    """``up`` as a unit 3-vector; ConfigError if it is not three finite numbers, not zero."""
     v = np.asarray(up, dtype=float).reshape(-1)
     if v.shape != (3,) or not np.all(np.isfinite(v)) or np.linalg.norm(v) < _EPS:
-        raise SceneError(f"up must be a non-zero 3-vector, got {list(np.ravel(up))}")
+        raise ConfigError(f"up must be a non-zero 3-vector, got "
+                          f"{[float(x) for x in np.ravel(up)]}")
     return v / np.linalg.norm(v)
 
 
@@ -119,7 +121,7 @@ def _hypotheses(sample: np.ndarray, iterations: int, rng: np.random.Generator):
     """Unit normals (K, 3) and offsets (K,) of planes through random point triples
     (degenerate triples dropped)."""
     if iterations < 1:
-        raise SceneError(f"RANSAC needs at least one iteration, got {iterations}")
+        raise ConfigError(f"RANSAC needs at least one iteration, got {iterations}")
     idx = rng.integers(0, len(sample), size=(iterations, 3))
     a, b, c = sample[idx[:, 0]], sample[idx[:, 1]], sample[idx[:, 2]]
     n = np.cross(b - a, c - a)
