@@ -23,7 +23,7 @@ from armstereo.errors import ConfigError
 from armstereo.scene.errors import SceneError
 
 RANSAC_SAMPLE = 20_000  # points scored per hypothesis (a seeded random subset)
-MIN_PLANE_SHARE = 0.05  # a support plane holds at least this share of the cloud
+MIN_PLANE_SHARE = 0.10  # a support plane holds at least this share of the cloud
 # ... and at least this share of the best plane of any tilt: a level band through an inclined
 # table (a thin strip of it) must not pass for a table; a real table beside a wall does
 MIN_SHARE_OF_BEST = 0.25
