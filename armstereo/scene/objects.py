@@ -55,8 +55,12 @@ class ObjectShape:
     ``width`` of the footprint, ``angle`` of the length axis from the plane's u axis (rad),
     ``height`` of the top above the plane, ``model`` ("box" or "sphere"), ``top`` ("flat" or
     "curved"), ``radius`` (sphere only), ``kept`` mask of the points that survived the
-    outlier filter, ``measured_width`` the short side of the measured footprint rectangle
-    (for a sphere, ``width`` is the fitted diameter instead)."""
+    outlier filter, ``measured_size`` the measured footprint rectangle (length, width) (for a
+    sphere, ``length`` and ``width`` are the fitted diameter instead)."""
+
+    @property
+    def measured_width(self) -> float:
+        return self.measured_size[1]
 
     center_uv: tuple[float, float]
     length: float
@@ -67,7 +71,7 @@ class ObjectShape:
     top: str
     radius: float | None
     kept: np.ndarray
-    measured_width: float  # footprint rectangle's short side, whatever the model
+    measured_size: tuple[float, float]  # footprint rectangle (length, width), whatever the model
 
     def corners_uv(self) -> np.ndarray:
         """Footprint corners (4, 2) in plane coordinates, counter-clockwise."""
@@ -87,8 +91,10 @@ def measure_shape(uvh: np.ndarray, noise_m: float = 0.0) -> ObjectShape:
     sphere = fit_sphere(p, noise_m)
     if sphere is not None and _sphere_agrees(sphere, length, height):
         (su, sv, _), r = sphere
-        return ObjectShape((su, sv), 2 * r, 2 * r, 0.0, height, "sphere", top, r, kept, width)
-    return ObjectShape((cu, cv), length, width, angle, height, "box", top, None, kept, width)
+        return ObjectShape((su, sv), 2 * r, 2 * r, 0.0, height, "sphere", top, r, kept,
+                           (length, width))
+    return ObjectShape((cu, cv), length, width, angle, height, "box", top, None, kept,
+                       (length, width))
 
 
 def outlier_mask(points: np.ndarray, *, seed: int = 0) -> np.ndarray:
