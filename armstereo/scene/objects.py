@@ -195,7 +195,11 @@ def _algebraic_sphere(p: np.ndarray):
     q = p - mean  # centred for conditioning
     A = np.column_stack([2 * q, np.ones(len(q))])
     b = (q ** 2).sum(axis=1)
-    x, *_ = np.linalg.lstsq(A, b, rcond=None)
+    # normal equations by einsum: a tall 4-wide lstsq goes through threaded BLAS (slow here)
+    try:
+        x = np.linalg.solve(np.einsum("ki,kj->ij", A, A), np.einsum("ki,k->i", A, b))
+    except np.linalg.LinAlgError:
+        return None
     r2 = x[3] + x[:3] @ x[:3]
     if not np.isfinite(r2) or r2 <= 0:
         return None

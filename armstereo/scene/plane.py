@@ -22,7 +22,8 @@ import numpy as np
 from armstereo.errors import ConfigError
 from armstereo.scene.errors import SceneError
 
-RANSAC_SAMPLE = 20_000  # points scored per hypothesis (a seeded random subset)
+RANSAC_SAMPLE = 8_000  # points scored per hypothesis (a seeded random subset; the refit
+# uses every point, so the sample only has to tell good hypotheses from bad ones)
 MIN_PLANE_SHARE = 0.10  # a support plane holds at least this share of the cloud
 # ... and at least this share of the best plane of any tilt: a level band through an inclined
 # table (a thin strip of it) must not pass for a table; a real table beside a wall does
@@ -75,8 +76,8 @@ class SupportPlane:
 
 
 def _dot(points: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """``points @ v`` for (N, 3) points; einsum, because a BLAS call on a 3-wide matrix is
-    several times slower (and starts threads) on a busy 2-core machine."""
+    """``points @ v`` for (N, 3) points. Not BLAS: on 3-wide arrays OpenBLAS gains nothing,
+    and its threads made such products 10x slower on a busy 2-core machine (measured)."""
     return np.einsum("ij,j->i", points, v)
 
 
@@ -103,6 +104,8 @@ def fit_support_plane(points: np.ndarray, *, up=(0.0, 0.0, 1.0), max_tilt_deg: f
     pts = np.asarray(points, dtype=float)
     rng = np.random.default_rng(seed)
     sample = pts[rng.choice(len(pts), size=min(len(pts), RANSAC_SAMPLE), replace=False)]
+    origin = sample.mean(axis=0)
+    sample = sample - origin  # centred, so float32 scoring keeps sub-micrometre precision
     normals, offsets = _hypotheses(sample, iterations, rng)
     flip = np.where(normals @ up_v < 0, -1.0, 1.0)  # every normal points up
     normals, offsets = normals * flip[:, None], offsets * flip
@@ -114,7 +117,8 @@ def fit_support_plane(points: np.ndarray, *, up=(0.0, 0.0, 1.0), max_tilt_deg: f
         raise SceneError(_no_level_plane(normals, support, cos_tilt, need, len(sample),
                                          max_tilt_deg, up_v))
     best = int(np.argmax(np.where(level, support, -1)))
-    return _refit(pts, normals[best], offsets[best], threshold_m, up_v, max_tilt_deg)
+    return _refit(pts, normals[best], offsets[best] + float(normals[best] @ origin),
+                  threshold_m, up_v, max_tilt_deg)
 
 
 def _hypotheses(sample: np.ndarray, iterations: int, rng: np.random.Generator):
@@ -133,12 +137,20 @@ def _hypotheses(sample: np.ndarray, iterations: int, rng: np.random.Generator):
 
 def _support(sample: np.ndarray, normals: np.ndarray, offsets: np.ndarray,
              threshold_m: float) -> np.ndarray:
-    """Number of sample points within ``threshold_m`` of each plane (K,)."""
+    """Number of sample points within ``threshold_m`` of each plane (K,). float32 and plain
+    broadcasting: a 3-wide BLAS product is slower on a busy 2-core machine."""
+    s32 = sample.astype(np.float32)
+    n32, d32 = normals.astype(np.float32), offsets.astype(np.float32)
     out = np.empty(len(normals), dtype=np.int64)
-    step = max(1, 4_000_000 // max(1, len(sample)))  # bound the (K, N) distance block
+    step = max(1, 2_000_000 // max(1, len(sample)))  # bound the (N, K) distance block
     for k in range(0, len(normals), step):
-        d = np.abs(np.einsum("ij,kj->ik", sample, normals[k:k + step]) - offsets[k:k + step])
-        out[k:k + step] = np.count_nonzero(d < threshold_m, axis=0)
+        n, d = n32[k:k + step], d32[k:k + step]
+        dist = s32[:, 0:1] * n[:, 0]
+        dist += s32[:, 1:2] * n[:, 1]
+        dist += s32[:, 2:3] * n[:, 2]
+        dist -= d
+        np.abs(dist, out=dist)
+        out[k:k + step] = np.count_nonzero(dist < threshold_m, axis=0)
     return out
 
 
@@ -158,26 +170,37 @@ def _no_level_plane(normals, support, cos_tilt, need, n_sample, max_tilt_deg, up
 
 def _refit(pts: np.ndarray, n: np.ndarray, d: float, threshold_m: float, up_v: np.ndarray,
            max_tilt_deg: float) -> SupportPlane:
+    cols = np.ascontiguousarray(pts.T)  # (3, N): contiguous rows make every pass below cheap
     band = threshold_m
     for _ in range(REFIT_ROUNDS):
-        inl = pts[np.abs(_dot(pts, n) - d) < band]
-        if len(inl) < 3:
+        inl = cols[:, np.abs(_combine(n, cols) - d) < band]
+        if inl.shape[1] < 3:
             raise SceneError("no support plane: the RANSAC plane lost its inliers in the refit")
-        centroid = inl.mean(axis=0)
-        q = inl - centroid
-        _, vecs = np.linalg.eigh(np.einsum("ij,ik->jk", q, q))
+        centroid = inl.mean(axis=1)
+        q = inl - centroid[:, None]
+        _, vecs = np.linalg.eigh(np.einsum("ik,jk->ij", q, q))
         n = vecs[:, 0] * (1.0 if vecs[:, 0] @ up_v >= 0 else -1.0)
         d = float(n @ centroid)
-        rms = float(np.sqrt(np.mean(_dot(q, n) ** 2)))
+        rms = float(np.sqrt(np.mean(_combine(n, q) ** 2)))
         band = min(threshold_m, max(REFIT_SIGMAS * rms, MIN_REFIT_THRESHOLD_M))
     tilt = math.degrees(math.acos(float(np.clip(n @ up_v, -1.0, 1.0))))
     if tilt > max_tilt_deg:
         raise SceneError(f"the support plane's refit normal is tilted {tilt:.1f} deg from up "
                          f"(limit {max_tilt_deg:g} deg)")
     T = plane_frame(n, d)
-    uv = np.einsum("ij,jk->ik", inl - T[:3, 3], T[:3, :2]).astype(np.float32)
-    hull = cv2.convexHull(uv).reshape(-1, 2).astype(float)
-    return SupportPlane(n, d, rms, len(inl), tilt, hull, T)
+    rel = inl - T[:3, 3:4]
+    uv = np.column_stack([_combine(T[:3, 0], rel), _combine(T[:3, 1], rel)])
+    return SupportPlane(n, d, rms, inl.shape[1], tilt, _hull(uv), T)
+
+
+def _combine(v: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """``v @ rows`` for a 3-vector and (3, N) rows, without BLAS (see :func:`_dot`)."""
+    return v[0] * rows[0] + v[1] * rows[1] + v[2] * rows[2]
+
+
+def _hull(uv: np.ndarray) -> np.ndarray:
+    """Convex hull (K, 2) of plane points ``uv`` (N, 2)."""
+    return cv2.convexHull(uv.astype(np.float32)).reshape(-1, 2).astype(float)
 
 
 def plane_frame(normal: np.ndarray, height: float) -> np.ndarray:
