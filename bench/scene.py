@@ -8,6 +8,7 @@ analyses the cloud ``--repeat`` times and prints the median per stage, then clus
 above the plane with :func:`armstereo.scene.cluster.voxel_clusters` and with
 ``sklearn.cluster.DBSCAN`` (eps = the voxel edge, min_samples 10, one job) and reports their
 times, cluster counts and agreement (adjusted Rand index on the points both call non-noise).
+Wall times on a shared machine swing with its load; the process's CPU time swings less.
 
     .venv/bin/python bench/scene.py [--points 300000] [--repeat 5] [--cloud FILE] [--markdown]
 """
@@ -59,9 +60,10 @@ def _shift(T: np.ndarray) -> np.ndarray:
 def time_analysis(cloud: SceneCloud, repeat: int) -> dict[str, float]:
     runs = []
     for _ in range(repeat):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         analysis = analyze_scene(cloud)
-        runs.append({**analysis.timings_s, "total": time.perf_counter() - t0})
+        runs.append({**analysis.timings_s, "total": time.perf_counter() - t0,
+                     "total CPU (this process)": time.process_time() - c0})
     return {k: statistics.median(r[k] for r in runs) for k in runs[0]}, analysis
 
 

@@ -18,7 +18,7 @@ from armstereo.scene.analysis import SceneAnalysis, SceneObject
 from armstereo.scene.cloud import SceneCloud
 
 MAX_SIDE_PX = 1400
-MIN_PX_M = 0.0005
+TARGET_SIDE_PX = 900  # small clouds are drawn at whole-number zoom up to about this size
 MARGIN_PX = 20
 LEGEND_PX = 62
 OUTLINE_BGR = (60, 255, 60)
@@ -27,6 +27,7 @@ HULL_BGR = (255, 160, 60)
 TEXT_BGR = (255, 255, 255)
 FONT = cv2.FONT_HERSHEY_SIMPLEX
 SCALE_BAR_M = 0.05
+DIM = 0.85
 
 
 def top_down_image(analysis: SceneAnalysis, cloud: SceneCloud) -> np.ndarray:
@@ -38,7 +39,11 @@ def top_down_image(analysis: SceneAnalysis, cloud: SceneCloud) -> np.ndarray:
     colors = (np.full((len(uvh), 3), 200, np.uint8) if cloud.colors_bgr is None
               else cloud.colors_bgr[keep])
     lo, hi = uvh[:, :2].min(axis=0), uvh[:, :2].max(axis=0)
-    px = max(MIN_PX_M, float((hi - lo).max()) / MAX_SIDE_PX)
+    spacing = math.sqrt(plane.area_m2 / max(plane.inliers, 1))  # the table's point spacing
+    side = float((hi - lo).max())
+    cell = max(spacing, side / MAX_SIDE_PX)  # one cloud cell per point: no see-through holes
+    zoom = max(1, int(TARGET_SIDE_PX * cell / side))
+    px = cell / zoom
     w = int(math.ceil((hi[0] - lo[0]) / px)) + 2 * MARGIN_PX
     h = int(math.ceil((hi[1] - lo[1]) / px)) + 2 * MARGIN_PX
 
@@ -48,14 +53,16 @@ def top_down_image(analysis: SceneAnalysis, cloud: SceneCloud) -> np.ndarray:
         y = h - 1 - ((uv[:, 1] - lo[1]) / px + MARGIN_PX)
         return np.stack([x, y], axis=1)
 
-    img = np.zeros((h, w, 3), np.uint8)
-    p = np.clip(np.round(to_px(uvh[:, :2])).astype(np.int64), 0, [w - 1, h - 1])
-    flat = p[:, 1] * w + p[:, 0]
-    order = np.lexsort((uvh[:, 2], flat))  # by pixel, then height: the last one is the top
+    hc, wc = -(-h // zoom), -(-w // zoom)  # the cloud raster, one cell per zoom x zoom pixels
+    img = np.zeros((hc, wc, 3), np.uint8)
+    p = np.clip(np.floor(to_px(uvh[:, :2]) / zoom).astype(np.int64), 0, [wc - 1, hc - 1])
+    flat = p[:, 1] * wc + p[:, 0]
+    order = np.lexsort((uvh[:, 2], flat))  # by cell, then height: the last one is the top
     last = np.r_[flat[order][1:] != flat[order][:-1], True]
     top = order[last]
     img.reshape(-1, 3)[flat[top]] = colors[top]
-    img = (img * 0.75).astype(np.uint8)  # dim the cloud so the drawing stands out
+    img = cv2.resize(img, None, fx=zoom, fy=zoom, interpolation=cv2.INTER_NEAREST)[:h, :w]
+    img = (img * DIM).astype(np.uint8)  # dim the cloud so the drawing stands out
     hull = np.round(to_px(plane.hull_uv)).astype(np.int32)
     cv2.polylines(img, [hull], True, HULL_BGR, 1, cv2.LINE_AA)
     for o in analysis.objects:
