@@ -10,6 +10,7 @@ from pathlib import Path
 from armstereo.errors import ConfigError
 from armstereo.evaluation.scene_score import score_scene
 from armstereo.evaluation.scene_truth import SceneTruth
+from armstereo.ply import write_bytes_atomic
 from armstereo.scene import SceneOptions, analyze_scene, load_cloud
 from armstereo.scene.export import scene_json, write_scene_outputs
 from armstereo.scene.report import score_lines, summary
@@ -86,8 +87,9 @@ def run(args: argparse.Namespace) -> int:
     score = None
     if truth is not None:
         score = score_scene(analysis, truth)
-        paths["scene_score.json"] = out / "scene_score.json"
-        paths["scene_score.json"].write_text(json.dumps(score.as_dict(), indent=2) + "\n")
+        paths["scene_score.json"] = write_bytes_atomic(
+            out / "scene_score.json",
+            (json.dumps(score.as_dict(), indent=2, allow_nan=False) + "\n").encode())
     if args.json:
         sys.stdout.write(scene_json(analysis))
         return 0

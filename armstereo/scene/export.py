@@ -10,9 +10,11 @@ from pathlib import Path
 import numpy as np
 
 from armstereo.errors import ConfigError
+from armstereo.evaluation.scene_score import SceneScore, score_scene
+from armstereo.evaluation.scene_truth import SceneTruth
 from armstereo.ply import write_bytes_atomic
-from armstereo.scene.analysis import SceneAnalysis
-from armstereo.scene.cloud import SceneCloud
+from armstereo.scene.analysis import SceneAnalysis, SceneOptions, analyze_scene
+from armstereo.scene.cloud import SceneCloud, check_cloud
 from armstereo.scene.foxglove import write_scene_mcap
 from armstereo.scene.render import top_down_image
 from armstereo.visualize import write_png
@@ -44,6 +46,29 @@ def write_scene_outputs(analysis: SceneAnalysis, cloud: SceneCloud,
                                                      T_base_grid=hm.T_base_grid))
     write_bytes_atomic(paths["occupancy.npz"], analysis.occupancy.npz_bytes())
     return paths
+
+
+def analyze_points(points_base: np.ndarray, colors_bgr: np.ndarray | None, out_dir: str | Path,
+                   *, source: str, truth: SceneTruth | None = None,
+                   options: SceneOptions | None = None,
+                   metadata: dict[str, str] | None = None
+                   ) -> tuple[SceneAnalysis, SceneScore | None]:
+    """Analyse a base-frame cloud held in memory (points (N, 3) m, colours (N, 3) uint8 BGR),
+    e.g. the demo's reconstruction; write :data:`SCENE_FILES` (and ``scene_score.json`` when
+    ``truth`` is given) into ``out_dir``. Returns the analysis and its score (or None)."""
+    meta = dict(metadata or {})
+    if truth is not None:
+        meta.setdefault("scene_truth", truth.to_json())
+    cloud = check_cloud(SceneCloud(np.asarray(points_base, dtype=float), colors_bgr, "base",
+                                   source, meta))
+    analysis = analyze_scene(cloud, options or SceneOptions())
+    write_scene_outputs(analysis, cloud, out_dir)
+    score = None
+    if truth is not None:
+        score = score_scene(analysis, truth)
+        text = json.dumps(score.as_dict(), indent=2, allow_nan=False) + "\n"
+        write_bytes_atomic(Path(out_dir) / "scene_score.json", text.encode())
+    return analysis, score
 
 
 def _npz(**arrays) -> bytes:

@@ -16,7 +16,7 @@ from mcap.reader import make_reader
 from mcap_protobuf.decoder import DecoderFactory
 
 from armstereo.scene import analyze_scene, load_cloud
-from armstereo.scene.export import SCENE_FILES, write_scene_outputs
+from armstereo.scene.export import SCENE_FILES, analyze_points, write_scene_outputs
 from armstereo.scene.heightmap import OCCUPIED
 from tests.armstereo.scene.synth import default_truth, scan
 
@@ -114,3 +114,14 @@ def test_occupancy_npz_round_trips(written):
     _, analysis, paths = written
     data = np.load(io.BytesIO(paths["occupancy.npz"].read_bytes()))
     assert np.array_equal(data["occupancy"], analysis.occupancy.grid)
+
+
+def test_analyze_points_writes_and_scores_an_in_memory_cloud(tmp_path):
+    truth = default_truth()
+    cloud = scan(truth, spacing=0.003)
+    analysis, score = analyze_points(cloud.points, cloud.colors_bgr, tmp_path, source="demo",
+                                     truth=truth)
+    assert len(analysis.objects) == 4 and not score.missed and not score.phantoms
+    assert json.loads((tmp_path / "scene_score.json").read_text())["true_objects"] == 4
+    _, meta = _messages(tmp_path / "scene.mcap")
+    assert "scene_truth" in meta["armstereo"]
