@@ -14,9 +14,13 @@ import os
 import random
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from armstereo.cli.main import build_parser, main
+from armstereo.evaluation.scene_truth import SceneTruth
+from armstereo.io.ply import write_ply
+from tests.armstereo.scene import synth
 from tests.support import DATA, MIDDLEBURY, SAMPLE_RECORDING
 
 DOCUMENTED_EXIT_CODES = {0, 2, 3, 4, 5, 6, 130}  # README, "Errors and exit codes"
@@ -41,6 +45,7 @@ BASELINES: dict[str, list[str]] = {
     "reconstruct-images": ["reconstruct-images", str(TEMPLE / "templeSR0008.png"),
                            str(TEMPLE / "templeSR0009.png"), "--out", "{out}"],
     "study": ["study", "epipolar", "--trials", "1", "--points", "20", "--out", "{out}"],
+    "analyze": ["analyze", "{cloud}", "--out", "{out}"],
 }
 
 
@@ -78,7 +83,8 @@ def argv_for(command: str, target: str, value: str, tmp: Path) -> tuple[list[str
             "{text}": str(tmp / "a.txt")}
     value = fill.get(value, value)
     out = tmp / "out"
-    argv = [a.replace("{out}", str(out)) for a in BASELINES[command]]
+    argv = [a.replace("{out}", str(out)).replace("{cloud}", str(_cloud(tmp)))
+            for a in BASELINES[command]]
     if target.startswith("#"):
         positionals = [i for i, a in enumerate(argv[1:], 1)
                        if not a.startswith("-") and not argv[i - 1].startswith("--")]
@@ -91,6 +97,18 @@ def argv_for(command: str, target: str, value: str, tmp: Path) -> tuple[list[str
         argv += [target, value]
     watched = None if target == "--out" else _output(argv)
     return ["-q", *argv], watched
+
+
+def _cloud(tmp: Path) -> Path:
+    """A small table-top cloud (a table and one box) as PLY, for ``analyze``."""
+    path = tmp / "cloud.ply"
+    if not path.exists():
+        scan = synth.scan(SceneTruth([synth.table(), synth.box("b", 0.0, 0.0, 0.1, 0.08, 0.06)]),
+                          spacing=0.004)
+        colors = scan.colors_bgr if scan.colors_bgr is not None else np.full(
+            scan.points.shape, 128, np.uint8)
+        write_ply(path, scan.points, colors, comment="frame base, metres")
+    return path
 
 
 def _output(argv: list[str]) -> Path | None:

@@ -1,0 +1,261 @@
+"""Scene analysis of a base-frame cloud: support plane, objects, height map, occupancy.
+
+:func:`analyze_scene` runs the steps (each timed in ``SceneAnalysis.timings_s``):
+
+1. ``plane``: RANSAC + least-squares refit of the support plane (:mod:`.plane`);
+2. ``cluster``: points more than ``plane_threshold_m`` above it, grouped by voxel connected
+   components (:mod:`.cluster`); groups that are too small, too thin, too low or too sparse
+   to be an object (``min_points``, ``min_size_m``, ``min_height_m``, :data:`MIN_FILL`) are
+   counted as rejected: they are the stereo mismatches that collect in the shadows beside
+   tall objects;
+3. ``objects``: a gravity-aligned box, model, colour and texture per group (:mod:`.objects`,
+   :mod:`.appearance`);
+4. ``height_map`` and ``occupancy`` (:mod:`.heightmap`); objects that touch unobserved space
+   reaching the edge of the map are flagged ``partial`` (cut by the field of view: their size
+   and centre describe the visible part only).
+
+:meth:`SceneAnalysis.as_dict` is the ``scene.json`` document (keys in ``docs/scene-analysis.md``).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import asdict, dataclass, field
+
+import cv2
+import numpy as np
+
+from armstereo.errors import ConfigError
+from armstereo.scene.appearance import Appearance, appearance
+from armstereo.scene.cloud import SceneCloud
+from armstereo.scene.cluster import voxel_clusters
+from armstereo.scene.heightmap import HeightMap, Occupancy, height_map, occupancy
+from armstereo.scene.objects import ObjectShape, measure_shape
+from armstereo.scene.plane import SupportPlane, fit_support_plane, unit_up
+
+FORMAT = "armstereo.scene/1"
+PARTIAL_RING_CELLS = 2
+MIN_PATCH_SHARE = 0.5
+# An object's points per footprint area, relative to the table's: a surface seen from above
+# fills its footprint (measured 1.35-1.7 for the mock scene's objects in one pair, which are
+# closer to the camera than the table; about 0.8 for a round top in an evenly sampled cloud),
+# mismatch fragments are sparse streaks (0.51 for the largest one seen, seed 1 of the demo).
+MIN_FILL = 0.6  # height-map cells around an object searched for unobserved space
+
+
+@dataclass(frozen=True)
+class SceneOptions:
+    """Analysis settings (metres, degrees). See ``docs/scene-analysis.md`` for each one."""
+
+    up: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    max_tilt_deg: float = 10.0
+    plane_threshold_m: float = 0.005
+    ransac_iterations: int = 300
+    max_height_m: float = 1.0
+    cluster_voxel_m: float = 0.005
+    min_voxel_points: int = 2
+    min_points: int = 50
+    min_size_m: float = 0.02
+    min_height_m: float = 0.01
+    cell_m: float = 0.005
+    occupancy_cell_m: float = 0.02
+    seed: int = 0
+
+    def check(self) -> None:
+        """ConfigError naming the first bad setting."""
+        unit_up(self.up)
+        positive = ("plane_threshold_m", "max_height_m", "cluster_voxel_m", "min_size_m",
+                    "min_height_m", "cell_m", "occupancy_cell_m", "max_tilt_deg")
+        for name in positive:
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ConfigError(f"scene option {name} must be a positive number, got {v!r}")
+        if self.max_tilt_deg >= 90:
+            raise ConfigError(f"max tilt must be below 90 deg, got {self.max_tilt_deg}")
+        for name in ("ransac_iterations", "min_voxel_points", "min_points"):
+            if int(getattr(self, name)) < 1:
+                raise ConfigError(f"scene option {name} must be at least 1")
+        if self.occupancy_cell_m < self.cell_m:
+            raise ConfigError(f"the occupancy cell ({self.occupancy_cell_m} m) must not be "
+                              f"finer than the height-map cell ({self.cell_m} m)")
+
+
+@dataclass(frozen=True)
+class SceneObject:
+    """One object, base frame, metres: ``center_m`` the centre of its gravity-aligned box
+    (footprint centre, half its height above the plane), ``size_m`` (length >= width of the
+    footprint, height), ``yaw_deg`` of the length axis about base z in (-90, 90],
+    ``height_m`` of its top above the plane, ``footprint_m`` (4, 3) the footprint corners on
+    the plane."""
+
+    id: int
+    center_m: np.ndarray
+    size_m: tuple[float, float, float]
+    yaw_deg: float
+    height_m: float
+    points: int
+    model: str
+    top: str
+    partial: bool
+    radius_m: float | None
+    footprint_m: np.ndarray
+    appearance: Appearance | None
+
+    def as_dict(self) -> dict:
+        d = {"id": self.id, "center_m": _r(self.center_m), "size_m": _r(self.size_m),
+             "yaw_deg": round(self.yaw_deg, 2), "height_m": _r(self.height_m),
+             "points": self.points, "model": self.model, "top": self.top,
+             "partial": self.partial, "footprint_m": _r(self.footprint_m)}
+        if self.radius_m is not None:
+            d["radius_m"] = _r(self.radius_m)
+        if self.appearance is not None:
+            d.update(self.appearance.as_dict())
+        return d
+
+
+@dataclass
+class SceneAnalysis:
+    """Everything :func:`analyze_scene` found; ``as_dict`` gives ``scene.json``."""
+
+    source: str
+    points: int
+    plane: SupportPlane
+    objects: list[SceneObject]
+    rejected_clusters: int
+    height_map: HeightMap
+    occupancy: Occupancy
+    options: SceneOptions
+    timings_s: dict[str, float] = field(default_factory=dict)
+
+    def as_dict(self) -> dict:
+        pl, hm, occ = self.plane, self.height_map, self.occupancy
+        return {
+            "format": FORMAT, "frame_id": "base", "units": "m", "source": self.source,
+            "points": self.points,
+            "plane": {"normal": _r(pl.normal, 6), "height_m": _r(pl.height_m),
+                      "rms_m": _r(pl.rms_m), "tilt_deg": round(pl.tilt_deg, 4),
+                      "inliers": pl.inliers, "area_m2": _r(pl.area_m2),
+                      "hull_m": _r(pl.hull_base)},
+            "objects": [o.as_dict() for o in self.objects],
+            "rejected_clusters": self.rejected_clusters,
+            "height_map": {"cell_m": _r(hm.cell_m), "rows": int(hm.heights.shape[0]),
+                           "cols": int(hm.heights.shape[1]),
+                           "known_share": round(hm.known_share, 4),
+                           "T_base_grid": _r(hm.T_base_grid, 6)},
+            "occupancy": {"cell_m": _r(occ.cell_m), "shape_zyx": list(occ.grid.shape),
+                          "T_base_grid": _r(occ.T_base_grid, 6)},
+            "options": {k: (list(v) if isinstance(v, tuple) else v)
+                        for k, v in asdict(self.options).items()},
+            "timings_s": {k: round(v, 4) for k, v in self.timings_s.items()},
+        }
+
+
+def _r(v, nd: int = 5):
+    """Round floats (scalars or nested arrays) for JSON: 0.01 mm is plenty."""
+    a = np.asarray(v, dtype=float)
+    return round(float(a), nd) if a.ndim == 0 else np.round(a, nd).tolist()
+
+
+def analyze_scene(cloud: SceneCloud, options: SceneOptions = SceneOptions()) -> SceneAnalysis:
+    """Analyse a checked base-frame cloud (:func:`armstereo.scene.cloud.load_cloud`).
+
+    Raises SceneError when there is no level support plane, ConfigError for bad options.
+    """
+    options.check()
+    timings: dict[str, float] = {}
+    t0 = time.perf_counter()
+    plane = fit_support_plane(cloud.points, up=options.up, max_tilt_deg=options.max_tilt_deg,
+                              threshold_m=options.plane_threshold_m,
+                              iterations=options.ransac_iterations, seed=options.seed)
+    uvh = plane.to_plane(cloud.points)
+    timings["plane"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    above = np.flatnonzero((uvh[:, 2] > options.plane_threshold_m)
+                           & (uvh[:, 2] <= options.max_height_m))
+    labels = voxel_clusters(uvh[above], options.cluster_voxel_m,
+                            min_voxel_points=options.min_voxel_points,
+                            min_cluster_points=options.min_points)
+    timings["cluster"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    on_map = (uvh[:, 2] > -options.plane_threshold_m) & (uvh[:, 2] <= options.max_height_m)
+    hmap = height_map(uvh[on_map], plane.T_base_plane, options.cell_m)
+    outside = _unobserved_outside(hmap)
+    timings["height_map"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    objects, rejected = [], 0
+    n_clusters = int(labels.max()) + 1 if len(labels) else 0
+    order = np.argsort(labels, kind="stable")
+    bounds = np.searchsorted(labels[order], np.arange(n_clusters + 1))
+    density = plane.inliers / max(plane.area_m2, 1e-9)  # table points per square metre
+    min_points = _min_object_points(density, options)
+    for k in range(n_clusters):
+        idx = above[order[bounds[k]:bounds[k + 1]]]
+        if len(idx) < min_points:
+            rejected += 1
+            continue
+        shape = measure_shape(uvh[idx], plane.rms_m)
+        fill = len(idx) / (shape.measured_size[0] * shape.measured_size[1] * density)
+        if (shape.measured_width < options.min_size_m or shape.height < options.min_height_m
+                or shape.kept.sum() < min_points or fill < MIN_FILL):
+            rejected += 1
+            continue
+        colors = None if cloud.colors_bgr is None else cloud.colors_bgr[idx][shape.kept]
+        partial = _touches(hmap, outside, uvh[idx, :2])
+        objects.append(_scene_object(len(objects), shape, plane, uvh[idx][shape.kept],
+                                     colors, partial))
+    timings["objects"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    occ = occupancy(hmap, options.occupancy_cell_m, min_height=options.min_height_m)
+    timings["occupancy"] = time.perf_counter() - t0
+    return SceneAnalysis(cloud.source, len(cloud.points), plane, objects, rejected, hmap, occ,
+                         options, timings)
+
+
+def _min_object_points(density: float, options: SceneOptions) -> int:
+    """An object needs ``options.min_points`` points and at least MIN_PATCH_SHARE of what a
+    ``min_size_m`` square of the table holds (``density``, points per m^2): this drops the
+    sparse mismatch fragments of a dense cloud without losing objects of a sparse one."""
+    return max(options.min_points, int(MIN_PATCH_SHARE * density * options.min_size_m ** 2))
+
+
+def _scene_object(k: int, shape: ObjectShape, plane: SupportPlane, uvh: np.ndarray,
+                  colors: np.ndarray | None, partial: bool) -> SceneObject:
+    R = plane.T_base_plane[:3, :3]
+    center = plane.to_base(np.array([[*shape.center_uv, shape.height / 2]]))[0]
+    axis = R[:, :2] @ np.array([math.cos(shape.angle), math.sin(shape.angle)])
+    yaw = 0.0 if shape.model == "sphere" else _axis_yaw_deg(axis)
+    corners = np.column_stack([shape.corners_uv(), np.zeros(4)])
+    look = None if colors is None else appearance(uvh[:, :2], colors)
+    return SceneObject(k, center, (shape.length, shape.width, shape.height), yaw, shape.height,
+                       int(len(uvh)), shape.model, shape.top, partial, shape.radius,
+                       plane.to_base(corners), look)
+
+
+def _axis_yaw_deg(axis_base: np.ndarray) -> float:
+    """Yaw of a line (not a direction) about base z, degrees in (-90, 90]."""
+    d = math.degrees(math.atan2(axis_base[1], axis_base[0])) % 180.0
+    return d - 180.0 if d > 90.0 else d
+
+
+def _unobserved_outside(hmap: HeightMap) -> np.ndarray:
+    """Unobserved space around and in the height map, one cell wider on every side: the ring
+    outside the map plus the unknown cells connected (4-neighbours) to it, i.e. space outside
+    the view, as opposed to shadows enclosed by seen table."""
+    unknown = np.pad((~np.isfinite(hmap.heights)).astype(np.uint8), 1, constant_values=1)
+    _, comp = cv2.connectedComponents(unknown, connectivity=4)
+    return comp == comp[0, 0]
+
+
+def _touches(hmap: HeightMap, outside: np.ndarray, uv: np.ndarray) -> bool:
+    """True when unobserved outside space lies within PARTIAL_RING_CELLS of the points."""
+    rows, cols = hmap.cell_of(uv)
+    mask = np.zeros(outside.shape, dtype=np.uint8)
+    mask[np.clip(rows + 1, 0, outside.shape[0] - 1), np.clip(cols + 1, 0, outside.shape[1] - 1)] = 1
+    size = 2 * PARTIAL_RING_CELLS + 1
+    ring = cv2.dilate(mask, np.ones((size, size), np.uint8)).astype(bool)
+    return bool(np.any(ring & outside))

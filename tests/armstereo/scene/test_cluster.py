@@ -1,0 +1,64 @@
+"""Voxel connected components: separate what is apart, join what touches, drop sparse noise;
+the same partition as scikit-learn's DBSCAN on a tabletop's object points."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from armstereo.scene.cluster import NOISE, voxel_clusters
+from tests.armstereo.scene.synth import default_truth, scan
+
+
+def _patch(centre, half, spacing=0.001):
+    """A level square of grid points (like an object's top face seen from above), placed so
+    that no voxel holds a lone corner point."""
+    g = np.arange(-half, half - 1e-9, spacing) + 0.0002
+    x, y = np.meshgrid(g, g)
+    return np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)]) + centre
+
+
+def test_two_patches_apart_are_two_clusters_numbered_by_size():
+    small, big = _patch((0, 0, 0.05), 0.01), _patch((0.1, 0, 0.03), 0.02)
+    labels = voxel_clusters(np.vstack([small, big]), 0.005)
+    assert np.all(labels[len(small):] == 0) and np.all(labels[:len(small)] == 1)
+
+
+def test_patches_closer_than_a_voxel_join_and_farther_ones_do_not():
+    a = _patch((0, 0, 0), 0.01)
+    assert len(set(voxel_clusters(np.vstack([a, _patch((0.023, 0, 0), 0.01)]), 0.005))) == 1
+    assert len(set(voxel_clusters(np.vstack([a, _patch((0.032, 0, 0), 0.01)]), 0.005))) == 2
+
+
+def test_isolated_points_and_small_clusters_are_noise():
+    rng = np.random.default_rng(2)
+    patch = _patch((0, 0, 0), 0.02)
+    strays = rng.uniform(0.2, 0.5, (30, 3))  # one point per voxel: below min_voxel_points
+    small = _patch((-0.2, 0, 0), 0.002)  # 25 points
+    labels = voxel_clusters(np.vstack([patch, strays, small]), 0.005, min_voxel_points=2,
+                            min_cluster_points=50)
+    assert np.all(labels[:len(patch)] == 0)
+    assert np.all(labels[len(patch):] == NOISE)
+
+
+def test_far_outliers_cost_nothing_and_empty_input_is_fine():
+    pts = np.vstack([_patch((0, 0, 0), 0.01), [[1000.0, -500.0, 20.0]] * 3])
+    labels = voxel_clusters(pts, 0.005)
+    assert labels[-1] == 1 and labels[0] == 0
+    assert voxel_clusters(np.zeros((0, 3)), 0.005).shape == (0,)
+    with pytest.raises(ValueError):
+        voxel_clusters(pts, 0.0)
+
+
+def test_same_partition_as_sklearn_dbscan_on_tabletop_objects():
+    sklearn_cluster = pytest.importorskip("sklearn.cluster")
+    from sklearn.metrics import adjusted_rand_score
+
+    cloud = scan(default_truth(), spacing=0.0015, noise=0.0005)
+    objects = cloud.points[cloud.points[:, 2] > 0.005]
+    ours = voxel_clusters(objects, 0.005, min_voxel_points=2, min_cluster_points=50)
+    ref = sklearn_cluster.DBSCAN(eps=0.005, min_samples=10).fit_predict(objects)
+    assert set(ours) - {NOISE} == set(ref) - {NOISE} == {0, 1, 2, 3}
+    assert np.mean(ours == NOISE) < 0.001
+    both = (ours != NOISE) & (ref != NOISE)
+    assert adjusted_rand_score(ref[both], ours[both]) == pytest.approx(1.0)
