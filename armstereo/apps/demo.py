@@ -22,16 +22,18 @@ from armstereo.capture.run import model_metadata
 from armstereo.capture.session import capture_to_file
 from armstereo.errors import RecordingError
 from armstereo.evaluation.depth import DepthAccuracy, score_depth, visible_mask
+from armstereo.evaluation.scene_truth import SceneTruth
 from armstereo.io.files import write_text_atomic
 from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
 from armstereo.reconstruct.outputs import write_outputs
 from armstereo.reconstruct.pipeline import reconstruct_pair
 from armstereo.recording import Recording
+from armstereo.scene.export import analyze_points
 
 DEFAULT_BASELINE_M = 0.08
 DEMO_FILES = ("demo.mcap", "points.ply", "disparity.png", "rectified.png", "depth_error.png",
-              "report.json", "reconstruction.mcap")
+              "report.json", "reconstruction.mcap", "scene")
 
 
 @dataclass(frozen=True)
@@ -62,7 +64,7 @@ def run_demo(out_dir: Path, options: DemoOptions = DemoOptions(),
     t_start = time.perf_counter()
     timings: dict[str, float] = {}
 
-    progress(f"[1/4] capturing a pair with the mock {options.robot.upper()} "
+    progress(f"[1/5] capturing a pair with the mock {options.robot.upper()} "
              f"(baseline {options.baseline * 1000:.0f} mm)")
     t0 = time.perf_counter()
     model = ArmModel.load(options.robot, mount=CameraMount.load(None))
@@ -79,24 +81,34 @@ def run_demo(out_dir: Path, options: DemoOptions = DemoOptions(),
                             progress=None)
     timings["capture"] = time.perf_counter() - t0
 
-    progress(f"[2/4] rectifying and matching ({options.method}; the first run compiles the "
+    progress(f"[2/5] rectifying and matching ({options.method}; the first run compiles the "
              "matcher, later runs reuse the cache)")
     pair = Recording.open(out_dir / "demo.mcap")[0]
     recon = reconstruct_pair(pair, method=options.method)
     timings.update({k: recon.timings_s[k] for k in ("decode", "rectify", "match",
                                                     "triangulate")})
 
-    progress("[3/4] writing the point cloud and images")
+    progress("[3/5] writing the point cloud and images")
     t0 = time.perf_counter()
     _write_products(recon, out_dir)
     timings["write"] = time.perf_counter() - t0
 
-    progress("[4/4] scoring against the mock camera's ground truth")
+    progress("[4/5] scoring against the mock camera's ground truth")
     t0 = time.perf_counter()
     accuracy = score_reconstruction(recon.depth_original, pair, swapped=recon.swapped)
     timings["score"] = time.perf_counter() - t0
+
+    progress("[5/5] finding the table and the objects on it")
+    t0 = time.perf_counter()
+    truth = SceneTruth.from_json(Recording.open(out_dir / "demo.mcap").metadata["scene_truth"])
+    analysis, scene_score = analyze_points(recon.points_base, recon.colors_bgr,
+                                           out_dir / "scene", source="armstereo demo",
+                                           truth=truth)
+    timings["scene"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_start
     report = _report(recon, accuracy, timings, options)
+    report["scene"] = {"objects": analysis.as_dict()["objects"],
+                       "score": scene_score.as_dict()}
     write_text_atomic(out_dir / "report.json", json.dumps(report, indent=2) + "\n")
     return report
 

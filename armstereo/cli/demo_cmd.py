@@ -83,5 +83,29 @@ def _print_summary(report: dict, out: Path) -> None:
           f"{acc['within_1pct'] * 100:.1f} % of pixels within 1 %, "
           f"density {acc['density'] * 100:.1f} % (target >= {TARGET_DENSITY * 100:.0f} %: "
           f"{'met' if ok_den else 'MISSED'})")
+    _print_scene(report["scene"])
     print(f"files:    {out}/ points.ply disparity.png rectified.png depth_error.png "
-          "report.json demo.mcap reconstruction.mcap")
+          "report.json demo.mcap reconstruction.mcap scene/")
+
+
+def _print_scene(scene: dict) -> None:
+    """The object table and its score against the mock scene's truth."""
+    objects, score = scene["objects"], scene["score"]
+    print(f"objects:  {len(objects)} on the table (base frame, mm; heights above the table)")
+    for o in objects:
+        c, s = (round(v * 1000) for v in o["center_m"]), [round(v * 1000) for v in o["size_m"]]
+        print(f"  #{o['id']:<2} centre ({', '.join(map(str, c))})  {s[0]} x {s[1]} x {s[2]}  "
+              f"yaw {o['yaw_deg']:+.0f} deg  {o['model']}{' (partial)' if o['partial'] else ''}")
+    print("scene vs truth: " + "; ".join(score_summary(score)))
+
+
+def score_summary(score: dict) -> list[str]:
+    """Short phrases from ``scene_score.json``'s keys (objects cut by the view not counted in
+    the worst errors)."""
+    worst = score["worst"]
+    return [f"{len(score['matched'])} of {score['true_objects']} objects found, phantoms: "
+            f"{len(score['phantoms'])}, missed: {', '.join(score['missed']) or 'none'}",
+            f"plane tilt {score['plane_tilt_deg']:.3f} deg, height "
+            f"{score['plane_height_error_m'] * 1000:+.2f} mm",
+            f"worst centre {worst['center_error_m'] * 1000:.1f} mm, height "
+            f"{worst['height_error_m'] * 1000:.1f} mm"]

@@ -70,3 +70,14 @@ def test_bad_option_fails_before_a_folder_is_made(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "--baseline must be in" in err and err.count("\n") == 1
     assert not out.exists()
+
+
+def test_demo_finds_every_object_on_the_table_and_scores_them(demo_dir):
+    scene = json.loads((demo_dir / "report.json").read_text())["scene"]
+    score = scene["score"]
+    assert len(scene["objects"]) == score["true_objects"] == 7
+    assert score["missed"] == [] and score["phantoms"] == []
+    assert score["plane_tilt_deg"] < 0.05 and abs(score["plane_height_error_m"]) < 0.0005
+    assert score["worst"]["height_error_m"] < 0.002  # measured 0.2 mm
+    assert (demo_dir / "scene" / "scene.json").is_file()
+    assert (demo_dir / "scene" / "scene_top.png").is_file()
