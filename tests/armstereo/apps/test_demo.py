@@ -68,7 +68,7 @@ def test_bad_option_fails_before_a_folder_is_made(tmp_path, capsys):
     out = tmp_path / "never"
     assert main(["demo", "--baseline", "5", "--out", str(out)]) == 2
     err = capsys.readouterr().err
-    assert "--baseline must be in" in err and err.count("\n") == 1
+    assert "argument --baseline: 5 m exceeds the cap of 0.5 m" in err and err.count("\n") == 1
     assert not out.exists()
 
 
