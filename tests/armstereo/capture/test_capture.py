@@ -105,7 +105,8 @@ def test_unsafe_plan_exits_with_one_line_and_moves_nothing(tmp_path, capsys):
 ])
 def test_faults_keep_what_was_recorded(tmp_path, capsys, fault, code, views, words):
     out = tmp_path / "x.mcap"
-    assert main(["capture", "--pairs", "2", "--out", str(out), "--inject-fault", fault]) == code
+    argv = ["-q", "capture", "--pairs", "2", "--out", str(out), "--inject-fault", fault]
+    assert main(argv) == code
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and words in err[0].lower() and f"{views} view(s) kept" in err[0]
     rec = Recording.open(out)
