@@ -100,11 +100,10 @@ class MockCamera(Camera):
         true hand-eye transform (the mount's, with the profile's error and
         ``config.hand_eye_offset``) and true intrinsics."""
         profile: MockProfile = config.profile
-        T_flange_true = (model.mount.T_flange_camera
-                         @ hand_eye_error(profile.hand_eye, config.seed)
-                         @ offset_transform(config.hand_eye_offset))
+        truth = true_mount(config.truth_mount or model.mount, profile, config.seed,
+                           config.hand_eye_offset)
+        T_flange_true, true_intr = truth.T_flange_camera, truth.intrinsics
         flange = _flange_source(arm, model)
-        true_intr = true_intrinsics(model.mount.intrinsics, profile.intrinsics, config.seed)
         scene = config.scene
         if scene is None:
             from drivers.mock.desk import scene_for
@@ -173,6 +172,19 @@ class MockCamera(Camera):
             image = np.clip(np.rint(noisy), 0, 255).astype(np.uint8)
         self._last_depth = depth
         return Frame(image=image, timestamp_ns=stamp, depth=depth)
+
+
+def true_mount(mount, profile: MockProfile, seed: int, offset=None):
+    """The camera's TRUE mount (a CameraMount): ``mount``'s hand-eye transform with the
+    profile's seeded error and ``offset`` (dx, dy, dz m, rx, ry, rz deg; camera frame), and its
+    intrinsics with the profile's seeded errors. What a perfect calibration would measure."""
+    from dataclasses import replace
+
+    T = (mount.T_flange_camera @ hand_eye_error(profile.hand_eye, seed)
+         @ offset_transform(offset))
+    return replace(mount, name=f"{mount.name} (true, {profile.name} seed {seed})",
+                   T_flange_camera=T,
+                   intrinsics=true_intrinsics(mount.intrinsics, profile.intrinsics, seed))
 
 
 def true_intrinsics(believed: Intrinsics, errors: IntrinsicsErrors, seed: int) -> Intrinsics:

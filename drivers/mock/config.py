@@ -62,9 +62,12 @@ class MockArmConfig:
 @dataclass(frozen=True, kw_only=True)
 class MockCameraConfig:
     """The ray-cast camera. ``scene`` (a :class:`drivers.mock.scene.Scene`) replaces the
-    default table scene."""
+    profile's scene. ``truth_mount`` (a CameraMount): the mount the profile's camera errors are
+    applied to when it is not the one the software uses (a benchmark that hands the software a
+    perfectly calibrated camera)."""
 
     scene: Any = None
+    truth_mount: Any = None
     noise: float = field(default=0.0, metadata=option(
         "--camera-noise", "mock camera: sensor noise sigma in grey levels", type=float))
     seed: int = field(default=0, metadata=option(

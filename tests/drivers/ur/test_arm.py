@@ -31,7 +31,7 @@ from armstereo.errors import (
 )
 from armstereo.transforms import make_T, rot_x, rot_y, rot_z, ur_pose_from_T
 from drivers.ur import arm as arm_module
-from drivers.ur import probe
+from drivers.ur import primary, probe
 from drivers.ur.arm import RECEIVE_VARIABLES, URArm
 from drivers.ur.channel import ControlChannel
 from drivers.ur.probe import ControllerInfo
@@ -163,6 +163,10 @@ class FakeController:
             return ControllerInfo(host, (5, 12, 0, 0))
 
         monkeypatch.setattr(arm_module, "check_controller", fake_check)
+        # No primary stream here (and no traffic to HOST): the table is "not read".
+        monkeypatch.setattr(arm_module, "read_arm_kinematics",
+                            lambda host, model, timeout: primary._nominal(
+                                model, None, ["no primary stream in this test"]))
         monkeypatch.setattr(arm_module, "check_port",
                             lambda host, port, timeout, what: ctl.log("check_port", host, port))
 
