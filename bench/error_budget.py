@@ -71,7 +71,7 @@ def run_one(profile: MockProfile, read: bool, calibrated_camera: bool, seed: int
     options = DemoOptions(profile=profile, read_calibration=read, mount=mount, seed=seed,
                           method=method)
     with tempfile.TemporaryDirectory() as tmp:
-        report = run_demo(Path(tmp) / "demo", options)
+        report = run_demo(Path(tmp), options)
     acc = report["accuracy"]
     return {"err": acc["median_abs_rel_depth_error"] * 100, "density": acc["density"] * 100,
             "point_mm": report["point_error_mm"]["median"], "time": report["timings_s"]["total"]}
