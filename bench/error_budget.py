@@ -8,6 +8,7 @@ desk scene at the demo's 80 mm baseline, with only the named error sources on. R
 - ``none``: every source off (what the desk scene and the matcher give on their own);
 - one row per source alone: the arm's factory calibration with the NOMINAL model used,
   hand-eye error, intrinsics error, image effects, joint noise (encoder noise and ringing);
+- the image effects one at a time (noise, blur, vignetting, exposure and white balance);
 - all sources, nothing corrected (nominal model);
 - after reading the controller's calibrated kinematics (the demo's default);
 - after a perfect camera calibration (the software is handed the camera's true intrinsics and
@@ -37,7 +38,7 @@ from pathlib import Path
 from armstereo.apps.demo import DemoOptions, run_demo
 from armstereo.mount import CameraMount
 from drivers.mock.camera import true_mount
-from drivers.mock.profile import REALISTIC, MockProfile
+from drivers.mock.profile import REALISTIC, ImageEffects, MockProfile
 
 NONE = MockProfile("none", scene=REALISTIC.scene)
 
@@ -56,8 +57,19 @@ def rows() -> list[tuple[str, MockProfile, bool, bool]]:
         ("joint noise alone (encoder noise, ringing)",
          dataclasses.replace(NONE, name="joints", joints=REALISTIC.joints), True),
     ]
+    im = REALISTIC.image
+    effects = [
+        ("image: photon and read noise only", ImageEffects(
+            read_noise=im.read_noise, shot_noise_gain=im.shot_noise_gain)),
+        ("image: defocus blur only", ImageEffects(blur_sigma_px=im.blur_sigma_px)),
+        ("image: vignetting only (no noise)", ImageEffects(vignetting=im.vignetting)),
+        ("image: exposure and white balance only", ImageEffects(
+            exposure_rel=im.exposure_rel, white_balance_rel=im.white_balance_rel)),
+    ]
     return ([("none (desk scene, every source off)", NONE, True, False)]
             + [(label, p, read, False) for label, p, read in alone]
+            + [(label, dataclasses.replace(NONE, name="image part", image=fx), True, False)
+               for label, fx in effects]
             + [("all sources, nominal model (nothing corrected)", REALISTIC, False, False),
                ("all, after reading the controller's calibration (the demo)", REALISTIC, True,
                 False),

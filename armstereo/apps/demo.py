@@ -36,6 +36,7 @@ from armstereo.reconstruct.outputs import write_outputs
 from armstereo.reconstruct.pipeline import reconstruct_pair
 from armstereo.recording import Recording
 from armstereo.recording.inspect import summarize
+from armstereo.robot.model_file import load_arm_model
 from armstereo.scene.export import analyze_points
 
 DEFAULT_BASELINE_M = 0.08
@@ -86,7 +87,7 @@ def run_demo(out_dir: Path, options: DemoOptions = DemoOptions(),
              f"profile) and reading its calibration")
     t0 = time.perf_counter()
     world_mount = CameraMount.load(None)
-    given = ArmModel.load(options.robot, mount=world_mount)
+    given = load_arm_model(options.robot, mount=world_mount)
     noise = options.camera_noise
     if noise is None:
         noise = 1.0 if options.profile_name == "ideal" else 0.0

@@ -31,7 +31,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help=f"camera move between the two views (m, default {DEFAULT_BASELINE_M})")
     p.add_argument("--method", choices=["birchfield", "sgbm"], default="birchfield",
                    help="stereo matcher (default birchfield)")
-    p.add_argument("--robot", default="ur5e", help="mock arm model (default ur5e)")
+    p.add_argument("--robot", default="ur5e",
+                   help="mock arm model: a model name (default ur5e) or a model file saved by "
+                   "robot-info --save")
     p.add_argument("--seed", type=args_.whole(0, 2**32 - 1), default=0,
                    help="scene and noise seed")
     p.add_argument("--mock-profile", choices=backends.mock_profile_names(), default="realistic",

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -19,6 +20,9 @@ BASELINE_TOLERANCE_M = 1e-4  # event vs poses: larger differences are reported
 # Our FK vs the controller's own flange pose: with the controller's calibrated table they agree
 # to ~1e-12 m; beyond this the kinematic model is not this arm's.
 FK_VS_CONTROLLER_TOLERANCE_M = 1e-4
+# /tf against the recorded DH table's FK of the recorded joints (m, and rad for rotations):
+# the two are one computation, so only float rounding separates them.
+RECORDED_TABLE_TOLERANCE_M = 1e-9
 
 
 def assemble(rec: Recording, col: Collector) -> None:
@@ -161,9 +165,37 @@ def _check_kinematics(rec: Recording) -> None:
                   f"{np.degrees(ang):.4f} deg from the controller's own flange pose (limit "
                   f"{FK_VS_CONTROLLER_TOLERANCE_M * 1000:g} mm): the kinematic model is not "
                   f"this arm's, so camera poses are off")
+    _check_recorded_table(rec)
     if rec.metadata.get("arm") == "ur" and rec.metadata.get("kinematics_source") == "nominal":
         rec._warn("captured on a real arm with NOMINAL kinematics (the controller's calibrated "
                   "table was not read): camera poses may be off by millimetres")
+
+
+def _check_recorded_table(rec: Recording) -> None:
+    """The /tf flange poses must be the recorded table's FK of the recorded joints: that is
+    what reconstruction uses. Warn for the first view where they are not."""
+    text = rec.metadata.get("dh_table")
+    views = [v for v in rec.views if v.joint_positions is not None
+             and v.joint_positions.shape == (6,)]
+    if not text or not views:
+        return
+    from armstereo.errors import ArmstereoError
+    from armstereo.robot.dh import DHTable, fk, pose_difference
+
+    try:
+        values = json.loads(text)
+        table = DHTable(model="", theta=values["theta"], a=values["a"], d=values["d"],
+                        alpha=values["alpha"])
+    except (ValueError, TypeError, KeyError, ArmstereoError) as err:
+        rec._warn(f"metadata dh_table is not a DH table ({type(err).__name__}); /tf used as is")
+        return
+    for v in views:
+        lin, ang = pose_difference(fk(table, v.joint_positions), v.T_base_flange)
+        if lin > RECORDED_TABLE_TOLERANCE_M or ang > RECORDED_TABLE_TOLERANCE_M:
+            rec._warn(f"view {v.index}: the {S.TOPIC_TF} flange pose is {lin * 1000:.3f} mm "
+                      f"from the recorded dh_table's FK of its joints: the poses were not "
+                      f"computed with the recorded kinematics")
+            return
 
 
 def _check_baseline(rec: Recording, pair: Pair) -> None:

@@ -132,3 +132,17 @@ def test_fallbacks_when_the_table_is_not_read(nominal, tmp_path, caplog):
     # a live arm with nothing read at all still warns
     assert any("NOMINAL" in w for w in choose_kinematics(nominal, _Arm(None),
                                                          live=True).warnings)
+
+
+def test_poses_not_computed_with_the_recorded_table_are_reported(nominal, tmp_path):
+    out = tmp_path / "mixed.mcap"
+    other = synthetic_calibration("ur5e", SEED)
+    with backends.build_arm("mock", backends.arm_config("mock"), nominal) as arm:
+        plan = plan_capture(nominal, arm.joint_positions(), SETTINGS)
+        with backends.build_camera("mock", backends.camera_config("mock"), nominal,
+                                   arm) as camera:
+            capture_to_file(arm, camera, nominal, plan, out,
+                            {**model_metadata(nominal),
+                             "dh_table": json.dumps(other.as_dict())}, progress=None)
+    warnings = Recording.open(out).warnings
+    assert any("not computed with the recorded kinematics" in w for w in warnings)
