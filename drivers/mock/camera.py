@@ -100,9 +100,9 @@ class MockCamera(Camera):
         true hand-eye transform (the mount's, with the profile's error and
         ``config.hand_eye_offset``) and true intrinsics."""
         profile: MockProfile = config.profile
-        truth = true_mount(config.truth_mount or model.mount, profile, config.seed,
-                           config.hand_eye_offset)
-        T_flange_true, true_intr = truth.T_flange_camera, truth.intrinsics
+        true = true_mount(config.truth_mount or model.mount, profile, config.seed,
+                          config.hand_eye_offset)
+        T_flange_true, true_intr = true.T_flange_camera, true.intrinsics
         flange = _flange_source(arm, model)
         scene = config.scene
         if scene is None:
