@@ -139,6 +139,11 @@ def mock_target_scene(distances, T_base_camera, intrinsics, *, max_baseline: flo
                                      max_baseline=max_baseline, seed=seed)
 
 
+def mock_profile_names() -> tuple[str, ...]:
+    """The mock backends' named error profiles (``--mock-profile``), ``ideal`` first."""
+    return importlib.import_module("drivers.mock.profile").PROFILE_NAMES
+
+
 def arm_config(name: str, **values: Any) -> Any:
     """A config for arm backend ``name`` from keyword values (validated by the dataclass)."""
     return _make_config(arm_backend(name), values)

@@ -2,7 +2,9 @@
 
 The joint positions recorded for a view are read after the grab while the arm is steady, so
 they are the arm's actual joints at exposure; camera poses come from forward kinematics of those
-joints (``base`` frame), never from the commanded targets.
+joints (``base`` frame), never from the commanded targets. An arm that reports its controller's
+own flange pose (``joints_and_controller_pose``) has it recorded beside our FK of the same
+reading, so a recording shows whether our kinematics are the arm's.
 """
 
 from __future__ import annotations
@@ -24,12 +26,14 @@ MOVE_TIMEOUT_MARGIN_S = 10.0  # on top of the planned duration of a move
 
 def model_metadata(model: ArmModel) -> dict[str, str]:
     """The recording metadata that identifies the software, arm model and camera mount: what
-    every capture (CLI, demo, sweep) records so a replay can rebuild the same kinematics."""
+    every capture (CLI, demo, sweep) records so a replay can rebuild the same kinematics
+    (including the DH table, see :mod:`armstereo.capture.kinematics`)."""
     from armstereo import __version__
+    from armstereo.capture.kinematics import kinematics_metadata
 
     return {"armstereo_version": __version__, "robot": model.name,
             "urdf_sha256": model.urdf_sha256, "mount": model.mount.name,
-            "mount_toml": model.mount.source}
+            "mount_toml": model.mount.source, **kinematics_metadata(model)}
 
 
 @dataclass
@@ -91,10 +95,11 @@ def _shoot(arm: Arm, camera: Camera, model: ArmModel, plan: CapturePlan, writer,
     arm.clock.sleep(plan.settings.settle_s)
     arm.require_ok()
     frame = camera.grab()
-    q = arm.joint_positions()
+    read_both = getattr(arm, "joints_and_controller_pose", None)
+    q, T_controller = read_both() if callable(read_both) else (arm.joint_positions(), None)
     T_base_flange = model.flange_pose(q)
     writer.write_view(k, frame, q, model.joint_names, T_base_flange, model.mount.T_flange_camera,
-                      settle_s=plan.settings.settle_s)
+                      settle_s=plan.settings.settle_s, controller_T_base_flange=T_controller)
     log.debug("view %d recorded at q=%s", k, np.round(q, 5))
     return (T_base_flange @ model.mount.T_flange_camera)[:3, 3]
 

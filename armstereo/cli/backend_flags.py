@@ -40,7 +40,8 @@ def add_backend_flags(p: argparse.ArgumentParser, *, arms: tuple[str, ...] = bac
     p.add_argument("--arm", choices=arms, default="mock", help="arm backend (default mock)")
     p.add_argument("--camera", default="mock", help="mock or opencv:<index-or-path>")
     p.add_argument("--robot", default="ur5e",
-                   help=f"arm model: {', '.join(MODEL_NAMES)} or a URDF file")
+                   help=f"arm model: {', '.join(MODEL_NAMES)}, a URDF file or a model file "
+                   "saved by robot-info --save")
     p.add_argument("--mount", default=None, help="camera mount file (default: bundled mount)")
     seen: set[str] = set()
     for backend in _backends(arms):

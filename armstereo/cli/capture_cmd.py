@@ -9,6 +9,7 @@ from pathlib import Path
 
 from armstereo import backends
 from armstereo.capture import CaptureSettings, Workspace, plan_capture
+from armstereo.capture.kinematics import choose_kinematics
 from armstereo.capture.plan import MAX_BASELINE_M, MAX_PAIRS, MAX_SETTLE_S, parse_direction
 from armstereo.capture.run import CaptureResult, model_metadata
 from armstereo.capture.session import capture_to_file, confirm_live_motion
@@ -18,6 +19,7 @@ from armstereo.devices import MAX_LINEAR_ACCELERATION, MAX_LINEAR_SPEED, MotionL
 from armstereo.errors import ConfigError
 from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
+from armstereo.robot.model_file import load_arm_model
 
 log = logging.getLogger("armstereo.capture")
 
@@ -64,11 +66,13 @@ def add_motion_flags(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     choice = backend_choice(args)
     out = _output_path(args.out, args.force, args.dry_run)
-    model = ArmModel.load(args.robot, mount=CameraMount.load(args.mount))
+    model = load_arm_model(args.robot, mount=CameraMount.load(args.mount))
     settings = settings_from_args(args, model)
     arm = backends.build_arm(choice.arm, choice.arm_config, model)
     with arm:
         arm.require_ok()
+        kinematics = choose_kinematics(model, arm, live=choice.arm != "mock")
+        model = kinematics.model  # plans moves and computes poses with the arm's own table
         plan = plan_capture(model, arm.joint_positions(), settings)
         if args.dry_run or not plan.ok:
             print("\n".join(plan.describe()))
@@ -81,7 +85,8 @@ def run(args: argparse.Namespace) -> int:
                             ask=lambda: ask_to_move(f"The {args.robot} at {host} "))
         camera = backends.build_camera(choice.camera, choice.camera_config, model, arm)
         with camera:  # connect checks the device delivers what the (scaled) intrinsics say
-            result = capture_to_file(arm, camera, model, plan, out, _metadata(args, choice, model),
+            metadata = {**_metadata(args, choice, model), **kinematics.metadata()}
+            result = capture_to_file(arm, camera, model, plan, out, metadata,
                                      image_format=args.image_format)
     _print_summary(result, out)
     return 0
@@ -125,6 +130,8 @@ def _metadata(args: argparse.Namespace, choice: BackendChoice,
         "joint_noise_rad": repr(getattr(arm, "joint_noise", 0.0)),
         "camera_noise": repr(getattr(cam, "noise", 0.0)),
         "faults": ",".join(getattr(arm, "faults", ()) or getattr(cam, "faults", ())),
+        "mock_profile": getattr(getattr(arm, "profile", None), "name", "")
+        or getattr(getattr(cam, "profile", None), "name", ""),
     }
 
 

@@ -7,6 +7,7 @@ import logging
 import time
 from pathlib import Path
 
+from armstereo import backends
 from armstereo.apps.demo import DEFAULT_BASELINE_M, DEMO_FILES, DemoOptions, demo_settings, run_demo
 from armstereo.capture.plan import MAX_BASELINE_M
 from armstereo.cli import args as args_
@@ -30,15 +31,20 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help=f"camera move between the two views (m, default {DEFAULT_BASELINE_M})")
     p.add_argument("--method", choices=["birchfield", "sgbm"], default="birchfield",
                    help="stereo matcher (default birchfield)")
-    p.add_argument("--robot", default="ur5e", help="mock arm model (default ur5e)")
+    p.add_argument("--robot", default="ur5e",
+                   help="mock arm model: a model name (default ur5e) or a model file saved by "
+                   "robot-info --save")
     p.add_argument("--seed", type=args_.whole(0, 2**32 - 1), default=0,
                    help="scene and noise seed")
+    p.add_argument("--mock-profile", choices=backends.mock_profile_names(), default="realistic",
+                   help="how the mock errs: realistic (default: factory-calibrated arm, camera "
+                   "calibration errors, image effects, a desk scene) or ideal (exact)")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     options = DemoOptions(robot=args.robot, baseline=args.baseline, method=args.method,
-                          seed=args.seed)
+                          seed=args.seed, profile=args.mock_profile)
     demo_settings(options)  # bad options fail here, before a folder is made
     out = _out_dir(args.out)
     with output_folder(out):  # a run that fails leaves no empty folder behind
@@ -76,6 +82,15 @@ def _print_summary(report: dict, out: Path) -> None:
     stages = ", ".join(f"{k} {v:.2f} s" for k, v in t.items() if k != "total")
     ok_err = acc["median_abs_rel_depth_error"] <= TARGET_MEDIAN_REL_ERROR
     ok_den = acc["density"] >= TARGET_DENSITY
+    kin, check = report["kinematics"], report["check"]
+    print(f"profile:  {report['profile']}")
+    diff = kin["nominal_vs_calibrated_workspace_max"]
+    print(f"arm:      {kin['source']} kinematics"
+          + (f" (nominal FK is up to {diff['translation_mm']:.1f} mm / "
+             f"{diff['rotation_deg']:.2f} deg away)" if diff else ""))
+    fk = check["fk_vs_controller_max_mm"]
+    print(f"check:    FK vs controller {fk:.4f} mm" if fk is not None else "check:    -",
+          f"({len(check['warnings'])} warning(s))")
     print(f"points:   {report['points']:,}")
     print(f"time:     {t['total']:.1f} s ({stages})")
     print(f"accuracy: median depth error {acc['median_abs_rel_depth_error'] * 100:.3f} % "
@@ -83,6 +98,10 @@ def _print_summary(report: dict, out: Path) -> None:
           f"{acc['within_1pct'] * 100:.1f} % of pixels within 1 %, "
           f"density {acc['density'] * 100:.1f} % (target >= {TARGET_DENSITY * 100:.0f} %: "
           f"{'met' if ok_den else 'MISSED'})")
+    pe = report["point_error_mm"]
+    if pe["median"] is not None:
+        print(f"points:   median {pe['median']:.2f} mm from the true surfaces, "
+              f"{pe['within_1mm'] * 100:.1f} % within 1 mm")
     _print_scene(report["scene"])
     print(f"files:    {out}/ points.ply disparity.png rectified.png depth_error.png "
           "report.json demo.mcap reconstruction.mcap scene/")

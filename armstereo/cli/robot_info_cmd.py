@@ -20,7 +20,7 @@ from armstereo.robot.dh import (
     pose_difference,
     ur_calibration_hash,
 )
-from armstereo.robot.model_file import save_model_file
+from armstereo.robot.model_file import is_model_file, load_model_file, save_model_file
 from armstereo.transforms import T_from_ur_pose
 
 log = logging.getLogger(__name__)
@@ -46,8 +46,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--save", metavar="FILE", default=None,
                    help="save the calibrated model to FILE (.json) for --robot FILE")
     p.add_argument("--robot", default=None,
-                   help="the model you expect (ur3e, ur5e, ur10e, ur16e, ur5); refused if the "
-                   "controller's kinematics are another model's (default: identify it)")
+                   help="the model you expect (ur3e, ur5e, ur10e, ur16e, ur5), refused if the "
+                   "controller's kinematics are another model's (default: identify it); or a "
+                   "model file saved by --save: then it also says whether that file is still "
+                   "this arm's table")
     p.add_argument("--port", type=int, choices=READ_ONLY_PORTS, default=READ_ONLY_PORTS[1],
                    help="read-only port: 30012 secondary (default) or 30011 primary")
     p.add_argument("--timeout", type=args_.positive("s", cap=MAX_TIMEOUT_S),
@@ -59,8 +61,17 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     if args.save and not str(args.save).lower().endswith(".json"):
         raise ConfigError(f"--save {args.save}: a robot model file ends in .json")
-    result = _read(args.host, args.robot, args.port, args.timeout)
+    saved = load_model_file(args.robot).table if args.robot and is_model_file(args.robot) \
+        else None
+    result = _read(args.host, saved.model if saved else args.robot, args.port, args.timeout)
     summary = summarize(result, args.host, args.port)
+    if saved is not None:
+        summary["robot_file_matches"] = bool(result.calibrated
+                                             and result.table.sha256 == saved.sha256)
+        if not summary["robot_file_matches"]:
+            summary["warnings"].append(
+                f"--robot {args.robot} (sha256 {saved.sha256[:12]}) is not the table this "
+                f"controller reports" + ("" if result.calibrated else " (none was read)"))
     if args.save and result.calibrated:
         version = summary["software_version"] or ""
         summary["saved_to"] = str(save_model_file(args.save, result.table, host=args.host,
@@ -102,6 +113,7 @@ def summarize(result, host: str, port: int) -> dict:
         "nominal_vs_calibrated_workspace_max": _as_dict(result.nominal_difference),
         "calibrated_vs_controller": None,
         "saved_to": None,
+        "robot_file_matches": None,
         "warnings": list(result.warnings),
     }
     if joints is not None:

@@ -11,8 +11,22 @@ from pathlib import Path
 import numpy as np
 
 from armstereo import backends
-from armstereo.apps.sweep import Target, best_baseline, format_table, plot, run_sweep, write_csv
+from armstereo.apps.sweep import (
+    SCENE_MIN_DENSITY,
+    SceneMeasurement,
+    Target,
+    best_baseline,
+    best_scene_baseline,
+    format_scene_table,
+    format_table,
+    plot,
+    plot_scene,
+    run_sweep,
+    write_csv,
+    write_scene_csv,
+)
 from armstereo.capture import CaptureSettings, plan_capture
+from armstereo.capture.kinematics import choose_kinematics
 from armstereo.capture.plan import MAX_BASELINE_M
 from armstereo.capture.run import model_metadata
 from armstereo.capture.session import capture_to_file, confirm_live_motion
@@ -26,6 +40,7 @@ from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
 from armstereo.reconstruct.pipeline import reconstruct_pair
 from armstereo.recording import Recording
+from armstereo.robot.model_file import load_arm_model
 
 log = logging.getLogger("armstereo.sweep")
 
@@ -70,7 +85,9 @@ def run(args: argparse.Namespace) -> int:
     fixed = {"arm": {"layout": "horizontal"}} if mock else {}
     choice = backend_choice(args, defaults=SWEEP_DEFAULTS, fixed=fixed)
     out = Path(args.out or f"armstereo-sweep-{time.strftime('%Y%m%d-%H%M%S')}")
-    model = ArmModel.load(args.robot, mount=CameraMount.load(args.mount))
+    if mock and choice.arm_config.profile.scene == "desk":
+        return _desk_sweep(args, choice, baselines, out)
+    model = load_arm_model(args.robot, mount=CameraMount.load(args.mount))
     capture_one = (_mock_capture(args, choice, model, baselines, out) if mock
                    else _live_capture(args, choice, model, out))
     with output_folder(out):  # a sweep that fails before its first capture leaves nothing
@@ -85,6 +102,42 @@ def run(args: argparse.Namespace) -> int:
     print(f"best baseline for {span}: " + (f"{best * 100:g} cm" if best is not None else
                                            "none measured every target"))
     print(f"files: {out}/sweep.csv {out}/sweep.png and one recording per baseline")
+    return 0
+
+
+def _desk_sweep(args, choice: BackendChoice, baselines: list[float], out: Path) -> int:
+    """The realistic profile's sweep: the demo's desk capture once per baseline, scored over
+    every pixel both views see (see armstereo.apps.sweep)."""
+    from armstereo.apps.demo import DemoOptions, run_demo
+
+    if args.distances is not None:
+        raise ConfigError("--distances places planar targets (ideal profile); the realistic "
+                          "profile sweeps the desk scene at the demo's height")
+    if args.mount is not None:
+        raise ConfigError("--mount is not used by the desk sweep (it uses the bundled mount, "
+                          "which the realistic camera differs from)")
+    results = []
+    with output_folder(out):  # a sweep that fails before its first capture leaves nothing
+        for i, b in enumerate(baselines, 1):
+            log.info("[%d/%d] baseline %g cm", i, len(baselines), b * 100)
+            options = DemoOptions(robot=args.robot, baseline=b, method=args.method,
+                                  seed=choice.arm_config.seed, profile=choice.arm_config.profile)
+            folder = out / f"baseline_{b * 1000:.0f}mm"
+            folder.mkdir(exist_ok=True)
+            report = run_demo(folder, options)
+            acc = report["accuracy"]
+            results.append(SceneMeasurement(b, acc["median_abs_rel_depth_error"],
+                                            acc["within_1pct"], acc["density"],
+                                            report["point_error_mm"]["median"]))
+        write_scene_csv(out / "sweep.csv", results)
+        plot_scene(out / "sweep.png", results, f"armstereo sweep (desk, {args.robot}, "
+                   f"{choice.arm_config.profile.name} profile, {args.method})")
+    print("\n".join(format_scene_table(results)))
+    best = best_scene_baseline(results)
+    print("best baseline for the desk at 0.55 m: " + (
+        f"{best * 100:g} cm" if best is not None
+        else f"none kept {SCENE_MIN_DENSITY:.0%} density"))
+    print(f"files: {out}/sweep.csv {out}/sweep.png and one demo folder per baseline")
     return 0
 
 
@@ -139,15 +192,17 @@ def _live_capture(args, choice: BackendChoice, model: ArmModel, out: Path):
         path = out / f"sweep_b{b * 1000:.0f}mm.mcap"
         with backends.build_arm(choice.arm, choice.arm_config, model) as arm:
             arm.require_ok()
-            plan = plan_capture(model, arm.joint_positions(), _settings(args, b))
+            kinematics = choose_kinematics(model, arm, live=True)
+            plan = plan_capture(kinematics.model, arm.joint_positions(), _settings(args, b))
             plan.require_ok()
             if not confirmed:
                 confirm_live_motion(live=True, yes=args.yes,
                                     ask=lambda: ask_to_move(f"The {args.robot} "))
                 confirmed = True
-            with backends.build_camera(choice.camera, choice.camera_config, model, arm) as cam:
-                capture_to_file(arm, cam, model, plan, path, _meta(args, model, b),
-                                progress=None)
+            m = kinematics.model
+            with backends.build_camera(choice.camera, choice.camera_config, m, arm) as cam:
+                capture_to_file(arm, cam, m, plan, path,
+                                {**_meta(args, m, b), **kinematics.metadata()}, progress=None)
         recon = _reconstruct(path, args, near, far)
         return recon.depth_original, targets, None
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -16,6 +17,12 @@ if TYPE_CHECKING:
     from armstereo.recording.reader import Recording
 
 BASELINE_TOLERANCE_M = 1e-4  # event vs poses: larger differences are reported
+# Our FK vs the controller's own flange pose: with the controller's calibrated table they agree
+# to ~1e-12 m; beyond this the kinematic model is not this arm's.
+FK_VS_CONTROLLER_TOLERANCE_M = 1e-4
+# /tf against the recorded DH table's FK of the recorded joints (m, and rad for rotations):
+# the two are one computation, so only float rounding separates them.
+RECORDED_TABLE_TOLERANCE_M = 1e-9
 
 
 def assemble(rec: Recording, col: Collector) -> None:
@@ -35,6 +42,7 @@ def assemble(rec: Recording, col: Collector) -> None:
     _build_views(rec, col)
     _build_pairs(rec, col)
     _check_pairs_asked(rec)
+    _check_kinematics(rec)
     if col.first_ns is None:
         rec._warn("the recording holds no readable message")
 
@@ -74,7 +82,7 @@ def _intrinsics_at(col: Collector, t_ns: int) -> Intrinsics | None:
 def _build_views(rec: Recording, col: Collector) -> None:
     claimed: set[int] = set()
     for index in sorted(col.view_events):
-        t_ns, settle_s = col.view_events[index]
+        t_ns, settle_s, controller = col.view_events[index]
         missing = [topic for topic, table in ((S.TOPIC_IMAGE, col.images), (S.TOPIC_TF, col.tf))
                    if t_ns not in table]
         if missing:
@@ -82,7 +90,9 @@ def _build_views(rec: Recording, col: Collector) -> None:
                       f"{t_ns} ns); skipped")
             continue
         claimed.add(t_ns)
-        rec.views.append(_make_view(rec, col, index, t_ns, settle_s))
+        view = _make_view(rec, col, index, t_ns, settle_s)
+        view.controller_T_base_flange = controller
+        rec.views.append(view)
     for topic, table in ((S.TOPIC_IMAGE, col.images), (S.TOPIC_TF, col.tf),
                          (S.TOPIC_DEPTH, col.depth)):
         orphans = len(set(table) - claimed)
@@ -131,6 +141,61 @@ def _build_pairs(rec: Recording, col: Collector) -> None:
                     event["achieved_baseline_m"], event["direction"])
         _check_baseline(rec, pair)
         rec._pairs.append(pair)
+
+
+def fk_vs_controller(view: View) -> tuple[float, float] | None:
+    """(translation m, rotation rad) between the view's recorded FK flange pose and the
+    controller's reported one; None if the controller's was not recorded."""
+    if view.controller_T_base_flange is None:
+        return None
+    from armstereo.robot.dh import pose_difference
+
+    lin, ang = pose_difference(view.T_base_flange, view.controller_T_base_flange)
+    return float(lin), float(ang)
+
+
+def _check_kinematics(rec: Recording) -> None:
+    """Warn when the recorded poses are not the arm's: FK far from the controller's own pose,
+    or a real arm captured with nominal kinematics."""
+    worst = max(((d, v.index) for v in rec.views if (d := fk_vs_controller(v)) is not None),
+                default=None)
+    if worst is not None and worst[0][0] > FK_VS_CONTROLLER_TOLERANCE_M:
+        (lin, ang), index = worst
+        rec._warn(f"view {index}: our forward kinematics is {lin * 1000:.3f} mm / "
+                  f"{np.degrees(ang):.4f} deg from the controller's own flange pose (limit "
+                  f"{FK_VS_CONTROLLER_TOLERANCE_M * 1000:g} mm): the kinematic model is not "
+                  f"this arm's, so camera poses are off")
+    _check_recorded_table(rec)
+    if rec.metadata.get("arm") == "ur" and rec.metadata.get("kinematics_source") == "nominal":
+        rec._warn("captured on a real arm with NOMINAL kinematics (the controller's calibrated "
+                  "table was not read): camera poses may be off by millimetres")
+
+
+def _check_recorded_table(rec: Recording) -> None:
+    """The /tf flange poses must be the recorded table's FK of the recorded joints: that is
+    what reconstruction uses. Warn for the first view where they are not."""
+    text = rec.metadata.get("dh_table")
+    views = [v for v in rec.views if v.joint_positions is not None
+             and v.joint_positions.shape == (6,)]
+    if not text or not views:
+        return
+    from armstereo.errors import ArmstereoError
+    from armstereo.robot.dh import DHTable, fk, pose_difference
+
+    try:
+        values = json.loads(text)
+        table = DHTable(model="", theta=values["theta"], a=values["a"], d=values["d"],
+                        alpha=values["alpha"])
+    except (ValueError, TypeError, KeyError, ArmstereoError) as err:
+        rec._warn(f"metadata dh_table is not a DH table ({type(err).__name__}); /tf used as is")
+        return
+    for v in views:
+        lin, ang = pose_difference(fk(table, v.joint_positions), v.T_base_flange)
+        if lin > RECORDED_TABLE_TOLERANCE_M or ang > RECORDED_TABLE_TOLERANCE_M:
+            rec._warn(f"view {v.index}: the {S.TOPIC_TF} flange pose is {lin * 1000:.3f} mm "
+                      f"from the recorded dh_table's FK of its joints: the poses were not "
+                      f"computed with the recorded kinematics")
+            return
 
 
 def _check_baseline(rec: Recording, pair: Pair) -> None:

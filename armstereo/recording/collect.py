@@ -56,7 +56,7 @@ class Collector:
         self.tf: dict[int, _Frames] = {}
         self.calibrations: list[_Calibration] = []
         self.joints: dict[int, tuple[int, list[str], list[float]]] = {}
-        self.view_events: dict[int, tuple[int, float]] = {}
+        self.view_events: dict[int, tuple[int, float, np.ndarray | None]] = {}
         self.pair_events: list[dict] = []
         self.point_clouds: list[RecordedPointCloud] = []
         self._errors: dict[str, list] = {}  # topic -> [count, first reason]
@@ -164,7 +164,8 @@ class Collector:
         obj = _json_object(data)
         kind = obj.get("event")
         if kind == "view":
-            entry = (_int(obj, "timestamp_ns"), _number(obj, "settle_s"))
+            entry = (_int(obj, "timestamp_ns"), _number(obj, "settle_s"),
+                     _controller_pose(obj))
             self._keep(self.view_events, _int(obj, "view"), entry, topic)
         elif kind == "pair":
             event = {"pair": _int(obj, "pair"), "left_view": _int(obj, "left_view"),
@@ -291,6 +292,16 @@ def _number(obj: dict, key: str) -> float:
         raise ValueError(f"'{key}' is not a finite number")
     return float(v)
 
+
+
+def _controller_pose(obj: dict) -> np.ndarray | None:
+    """The view event's optional ``controller_T_base_tool0`` (16 numbers, row-major 4x4)."""
+    v = obj.get("controller_T_base_tool0")
+    if v is None:
+        return None
+    if not isinstance(v, list) or len(v) != 16 or not all(_is_number(x) for x in v):
+        raise ValueError("'controller_T_base_tool0' is not 16 finite numbers")
+    return np.array(v, dtype=float).reshape(4, 4)
 
 
 def describe(err: BaseException) -> str:

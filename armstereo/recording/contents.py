@@ -31,6 +31,8 @@ class View:
     settle_s: float | None = None
     image_format: str = "png"
     image_size: tuple[int, int] | None = None  # (width, height) from the image header
+    # The controller's own T_base_flange at this view's joints (if the arm reported one).
+    controller_T_base_flange: np.ndarray | None = None
     _image_data: bytes = field(default=b"", repr=False)
     _depth_msg: RawImage | None = field(default=None, repr=False)
 

@@ -6,7 +6,10 @@ or remove them.
 
 from __future__ import annotations
 
+import numpy as np
+
 from armstereo.errors import RecordingError
+from armstereo.recording.assemble import fk_vs_controller
 from armstereo.recording.reader import Recording, View
 
 
@@ -26,7 +29,18 @@ def summarize(rec: Recording) -> dict:
         "calibration": _calibration_entry(rec),
         "metadata": dict(rec.metadata),
         "warnings": list(rec.warnings),
+        **_fk_vs_controller(rec),
     }
+
+
+def _fk_vs_controller(rec: Recording) -> dict:
+    """``fk_vs_controller_max_mm`` / ``_deg``: the largest difference between our FK and the
+    controller's reported flange pose over the views (null when no view recorded it)."""
+    diffs = [d for v in rec.views if (d := fk_vs_controller(v)) is not None]
+    if not diffs:
+        return {"fk_vs_controller_max_mm": None, "fk_vs_controller_max_deg": None}
+    return {"fk_vs_controller_max_mm": max(d[0] for d in diffs) * 1000.0,
+            "fk_vs_controller_max_deg": float(np.degrees(max(d[1] for d in diffs)))}
 
 
 def _pair_entry(views: dict[int, View], event: dict) -> dict:
@@ -77,6 +91,9 @@ def format_text(summary: dict) -> str:
     lines.append(f"pairs: {len(summary['pairs'])}")
     lines.extend("  " + _pair_line(p) for p in summary["pairs"])
     lines.append("calibration: " + _calibration_line(summary["calibration"]))
+    if summary["fk_vs_controller_max_mm"] is not None:
+        lines.append(f"FK vs controller: {summary['fk_vs_controller_max_mm']:.4f} mm, "
+                     f"{summary['fk_vs_controller_max_deg']:.5f} deg at most over the views")
     lines.append("metadata:" if summary["metadata"] else "metadata: none")
     for key, value in summary["metadata"].items():
         if "\n" in value:  # a multi-line value (e.g. mount_toml) shows its line count only

@@ -84,6 +84,11 @@ CAPTURE_EVENT_SCHEMA = {
                 "view": {"type": "integer", "minimum": 0},
                 "timestamp_ns": {"type": "integer", "description": "exposure time, ns"},
                 "settle_s": {"type": "number", "description": "wait after motion stopped"},
+                "controller_T_base_tool0": {
+                    "type": "array", "items": {"type": "number"}, "minItems": 16,
+                    "maxItems": 16,
+                    "description": "the controller's own flange pose at the view's joints "
+                                   "(4x4 row-major, base frame, m), beside our FK on /tf"},
             },
             "required": ["event", "view", "timestamp_ns", "settle_s"],
         },

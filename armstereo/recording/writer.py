@@ -155,11 +155,13 @@ class RecordingWriter:
 
     def write_view(self, view: int, frame: Frame, q: np.ndarray, joint_names: Sequence[str],
                    T_base_flange: np.ndarray, T_flange_camera: np.ndarray, *,
-                   settle_s: float) -> None:
+                   settle_s: float, controller_T_base_flange: np.ndarray | None = None) -> None:
         """Record one view: image, ground-truth depth (if any), /tf, joint states, view event.
 
         ``q`` are the actual joints (rad) at exposure, ``T_base_flange`` their forward
         kinematics and ``T_flange_camera`` the mount; all share ``frame.timestamp_ns``.
+        ``controller_T_base_flange``: the flange pose the arm's controller reported for the same
+        joints (kept in the view event, for the FK cross-check), if the arm reports one.
         """
         view = _check_index("view", view)
         t_ns = _check_time(frame.timestamp_ns)
@@ -187,6 +189,10 @@ class RecordingWriter:
         joints = {"timestamp_ns": t_ns, "view": view, "names": names, "positions": q.tolist()}
         event = {"event": "view", "view": view, "timestamp_ns": t_ns,
                  "settle_s": _check_number("settle_s", settle_s)}
+        if controller_T_base_flange is not None:
+            event["controller_T_base_tool0"] = as_rigid(
+                controller_T_base_flange, "controller T_base_flange",
+                error=RecordingError).reshape(-1).tolist()
         with self._operation():
             self._add(S.TOPIC_IMAGE, t_ns, image_msg)
             if depth_msg is not None:

@@ -39,6 +39,7 @@ from armstereo.errors import (
 from armstereo.transforms import as_rigid, make_T, matrix_to_rotvec, rotvec_to_matrix
 from armstereo.validate import positive
 from drivers.mock.faults import FAULT_FRACTION, Fault, FaultPlan
+from drivers.mock.profile import IDEAL, TAG_JOINTS, MockProfile, get_profile, rng_for
 
 if TYPE_CHECKING:
     from armstereo.kinematics import ArmModel
@@ -56,6 +57,8 @@ LINEAR_ROTATION_SPEED = 0.5  # rad/s
 LINEAR_ROTATION_ACCELERATION = 1.0  # rad/s^2
 # A joint jump larger than this between neighbouring path samples is an IK branch flip.
 MAX_SAMPLE_JUMP_RAD = 0.2
+# wait_until_steady returns once the ringing after a move is below this (rad, any joint).
+STEADY_RAD = 2e-5
 
 
 def trapezoid_time_at(s: np.ndarray, distance: float, speed: float,
@@ -82,16 +85,27 @@ class MockArm(Arm):
     (in time) through that move. Every public call is logged in :attr:`history` as
     ``(method, args)``; what the simulation did on its own (faults, halts) goes to
     :attr:`events`.
+
+    ``profile`` (:mod:`drivers.mock.profile`) says how the arm errs. With its ``kinematics``
+    on, the arm's TRUE kinematics are a factory calibration seeded by ``seed``: it moves with
+    them (:attr:`model` is the true model, ``true_table`` its DH table) and broadcasts them at
+    connect (:attr:`kinematics`, read back through the UR primary-stream reader), while
+    ``model`` as given is only what the software believes. With its ``joints`` errors on,
+    readings carry encoder noise and the joints ring after each move.
     """
 
     def __init__(self, model: ArmModel, q0: np.ndarray | None = None, *,
                  clock: Clock | None = None, realtime: bool = False, joint_noise: float = 0.0,
-                 seed: int = 0, faults: FaultPlan | None = None, name: str = "mock arm"):
+                 seed: int = 0, faults: FaultPlan | None = None, name: str = "mock arm",
+                 profile: MockProfile | str = IDEAL):
         if realtime and isinstance(clock, SimClock):
             raise ConfigError(f"{name}: realtime=True needs a real clock, not a SimClock")
         if not (math.isfinite(joint_noise) and joint_noise >= 0):
             raise ConfigError(f"{name}: joint_noise must be >= 0 rad, got {joint_noise}")
-        self.model = model
+        self.profile = get_profile(profile)
+        self.believed_model = model
+        self.model, self.true_table = _true_kinematics(model, self.profile, seed)
+        self.kinematics = None  # what the arm broadcast at connect (realistic profile)
         self.name = name
         self.clock = clock if clock is not None else (RealClock() if realtime else SimClock())
         self.joint_noise = float(joint_noise)
@@ -103,6 +117,9 @@ class MockArm(Arm):
         self._q = _check_q(q0, "q0", name)
         model.check_limits(self._q)
         self._rng = np.random.default_rng(seed)
+        self._joint_rng = rng_for(seed, TAG_JOINTS)
+        self._ring_start_ns: int | None = None  # when the last move ended (ringing starts)
+        self._ring_shape = np.zeros(6)
         self._connected = False
         self._lost = False
         self._state, self._detail = ArmState.DISCONNECTED, "not connected yet"
@@ -119,7 +136,7 @@ class MockArm(Arm):
 
         q0 = start_joints(model, config.layout) if config.q0 is None else config.q0
         return cls(model, q0, realtime=config.realtime, joint_noise=config.joint_noise,
-                   seed=config.seed, faults=config.fault_plan)
+                   seed=config.seed, faults=config.fault_plan, profile=config.profile)
 
     # -- connection ------------------------------------------------------------------------
 
@@ -130,6 +147,13 @@ class MockArm(Arm):
         self._connected, self._lost = True, False
         if self._state is ArmState.DISCONNECTED:
             self._state, self._detail = ArmState.NORMAL, ""
+        if self.true_table is not None and self.kinematics is None:
+            from drivers.mock.broadcast import read_broadcast
+
+            q = self._reading()
+            self.kinematics = read_broadcast(self.true_table, q, self.model.flange_pose(q),
+                                             expected_model=self.believed_model.name,
+                                             name=self.name)
 
     def close(self) -> None:
         self.history.append(("close", {}))
@@ -150,15 +174,58 @@ class MockArm(Arm):
     # -- state -----------------------------------------------------------------------------
 
     def joint_positions(self) -> np.ndarray:
-        """Actual joints (6,), radians (with the repeatability noise of the last move)."""
+        """Actual joints (6,), radians, as the encoders read them (with the repeatability noise
+        of the last move; with the profile's joint errors, also encoder noise and ringing)."""
         self._require_link()
-        return self._q.copy()
+        return self._reading()
+
+    def joints_and_controller_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        """One joint reading (rad) and the flange pose ``T_base_flange`` the controller
+        computes from it with its own (true) kinematics: what one RTDE package carries."""
+        self._require_link()
+        q = self._reading()
+        return q, self.model.flange_pose(q)
+
+    def controller_flange_pose(self) -> np.ndarray:
+        """``T_base_flange`` as the controller reports it (its FK of a fresh joint reading)."""
+        return self.joints_and_controller_pose()[1]
+
+    def true_flange_pose(self) -> np.ndarray:
+        """Where the flange physically is now (true kinematics of the true, ringing joints);
+        what the mock camera renders from. Nothing a real arm could report."""
+        self._require_link()
+        return self.model.flange_pose(self._true_q())
 
     def wait_until_steady(self, timeout: float = 10.0) -> None:
-        """Moves block until the arm is at rest, so the mock is always steady here."""
+        """Moves block until the arm stops; with ringing, wait (on the clock) until it is
+        below STEADY_RAD, as a controller's isSteady does."""
         self.history.append(("wait_until_steady", {"timeout": timeout}))
         _check_positive(timeout, "timeout", math.inf, "s", self.name)
         self._require_link()
+        ring = self.profile.joints
+        if self._ring_start_ns is None or ring.settle_amplitude_rad <= STEADY_RAD:
+            return
+        quiet_s = ring.settle_time_constant_s * math.log(ring.settle_amplitude_rad / STEADY_RAD)
+        left = (self._ring_start_ns - self.clock.now_ns()) * 1e-9 + quiet_s
+        if left > timeout:
+            raise MotionTimeout(f"{self.name}: not steady within {timeout:g} s")
+        if left > 0:
+            self.clock.sleep(left)
+
+    def _true_q(self) -> np.ndarray:
+        """The true joints now: the resting joints plus the decaying ringing of the last move."""
+        ring = self.profile.joints
+        if self._ring_start_ns is None or ring.settle_amplitude_rad <= 0:
+            return self._q.copy()
+        dt = max(0.0, (self.clock.now_ns() - self._ring_start_ns) * 1e-9)
+        envelope = ring.settle_amplitude_rad * math.exp(-dt / ring.settle_time_constant_s)
+        return self._q + envelope * math.sin(2 * math.pi * ring.settle_frequency_hz * dt) \
+            * self._ring_shape
+
+    def _reading(self) -> np.ndarray:
+        noise = self.profile.joints.encoder_noise_rad
+        q = self._true_q()
+        return q + self._joint_rng.normal(0.0, noise, 6) if noise > 0 else q
 
     def stop(self) -> None:
         """Stop now; never raises (a stop on a dropped link is only logged)."""
@@ -272,6 +339,11 @@ class MockArm(Arm):
         if self.joint_noise > 0:
             noisy = qs[-1] + self._rng.normal(0.0, self.joint_noise, 6)
             self._q = np.clip(noisy, self.model.lower, self.model.upper)
+        if self.profile.joints.settle_amplitude_rad > 0:
+            # Each move excites its own mix of the joints; largest component = amplitude.
+            shape = self._joint_rng.standard_normal(6)
+            self._ring_shape = shape / np.max(np.abs(shape))
+            self._ring_start_ns = self.clock.now_ns()
 
     def _play(self, qs: np.ndarray, times: np.ndarray, until: float) -> float:
         """Advance the clock along the samples up to time ``until`` (s after the start); the
@@ -353,3 +425,15 @@ def _check_pose(T, name: str) -> np.ndarray:
 
 def _check_positive(value: float, what: str, limit: float, unit: str, name: str) -> None:
     positive(value, f"{name}: {what}", unit, cap=None if math.isinf(limit) else limit)
+
+
+def _true_kinematics(model: ArmModel, profile: MockProfile, seed: int):
+    """(the arm's true ArmModel, its DH table or None): a seeded factory calibration of
+    ``model``'s type when the profile says so, else ``model`` itself (no broadcast)."""
+    if not profile.kinematics:
+        return model, None
+    from armstereo.kinematics import ArmModel as _ArmModel
+    from armstereo.robot.synthetic import synthetic_calibration
+
+    table = synthetic_calibration(model.name, seed)
+    return _ArmModel.from_dh(table, mount=model.mount), table

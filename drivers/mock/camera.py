@@ -4,6 +4,12 @@ It pairs with any arm backend: ``pose_source`` returns ``T_base_camera`` (camera
 controller's base frame), normally ``lambda: model.camera_pose(arm.joint_positions())``, i.e.
 forward kinematics of the arm's *actual* joints at exposure. Each frame carries the exact
 ground-truth z-depth (metres, float32, NaN = nothing hit).
+
+With a mock profile (:mod:`drivers.mock.profile`) the camera differs from what it reports:
+:attr:`MockCamera.intrinsics` are the mount file's (what the software believes), while frames
+are rendered with ``true_intrinsics`` from the TRUE camera pose (the arm's physical flange and
+the camera's true hand-eye transform), and the profile's image effects are applied. The ground
+truth depth is the true depth of what each delivered pixel shows.
 """
 
 from __future__ import annotations
@@ -20,6 +26,17 @@ from armstereo.clock import Clock, SimClock
 from armstereo.devices import Arm, Camera, Frame
 from armstereo.errors import CameraTimeout, ConfigError
 from drivers.mock.faults import FaultPlan
+from drivers.mock.imaging import apply_effects
+from drivers.mock.profile import (
+    TAG_IMAGE,
+    TAG_INTRINSICS,
+    ImageEffects,
+    IntrinsicsErrors,
+    MockProfile,
+    hand_eye_error,
+    offset_transform,
+    rng_for,
+)
 from drivers.mock.scene import Scene, default_table_scene
 
 if TYPE_CHECKING:
@@ -43,7 +60,8 @@ class MockCamera(Camera):
                  scene: Scene | None = None, clock: Clock | None = None,
                  noise_sigma: float = 0.0, seed: int = 0, faults: FaultPlan | None = None,
                  supersample: int = 2, frame_period: float = DEFAULT_FRAME_PERIOD_S,
-                 name: str = "mock camera"):
+                 name: str = "mock camera", true_intrinsics: Intrinsics | None = None,
+                 effects: ImageEffects | None = None, truth: dict | None = None):
         if not isinstance(intrinsics, Intrinsics):
             raise ConfigError(f"{name}: intrinsics must be an Intrinsics, got "
                               f"{type(intrinsics).__name__}")
@@ -54,6 +72,13 @@ class MockCamera(Camera):
         if not (math.isfinite(frame_period) and frame_period >= 0):
             raise ConfigError(f"{name}: frame_period must be >= 0 s, got {frame_period}")
         self._intrinsics = intrinsics
+        self.true_intrinsics = intrinsics if true_intrinsics is None else true_intrinsics
+        if self.true_intrinsics.size != intrinsics.size:
+            raise ConfigError(f"{name}: true intrinsics are {self.true_intrinsics.size}, the "
+                              f"reported ones {intrinsics.size}")
+        self.effects = ImageEffects() if effects is None else effects
+        self._truth = dict(truth or {})
+        self._effects_rng = rng_for(seed, TAG_IMAGE)
         self._pose_source = pose_source
         self.scene = default_table_scene() if scene is None else scene
         self.clock = SimClock() if clock is None else clock
@@ -69,11 +94,28 @@ class MockCamera(Camera):
 
     @classmethod
     def from_config(cls, config: MockCameraConfig, model: ArmModel, arm: Arm) -> MockCamera:
-        """The registry's constructor: renders from forward kinematics of ``arm``'s actual
-        joints through ``model`` (any arm backend), on the arm's clock."""
-        return cls(model.mount.intrinsics, lambda: model.camera_pose(arm.joint_positions()),
-                   scene=config.scene, clock=arm.clock, noise_sigma=config.noise,
-                   seed=config.seed, faults=config.fault_plan)
+        """The registry's constructor, on the arm's clock. Renders from where the flange is:
+        the mock arm's true flange pose, a real controller's reported one, or else forward
+        kinematics of the arm's actual joints through ``model``; then through the camera's
+        true hand-eye transform (the mount's, with the profile's error and
+        ``config.hand_eye_offset``) and true intrinsics."""
+        profile: MockProfile = config.profile
+        true = true_mount(config.truth_mount or model.mount, profile, config.seed,
+                          config.hand_eye_offset)
+        T_flange_true, true_intr = true.T_flange_camera, true.intrinsics
+        flange = _flange_source(arm, model)
+        scene = config.scene
+        if scene is None:
+            from drivers.mock.desk import scene_for
+
+            scene = scene_for(profile.scene, config.seed)
+        truth = {"profile": profile.name, "T_flange_camera": T_flange_true.tolist(),
+                 "K": true_intr.K.tolist(), "dist": true_intr.dist.tolist(),
+                 "hand_eye_offset": list(config.hand_eye_offset or ())}
+        return cls(model.mount.intrinsics, lambda: flange() @ T_flange_true, scene=scene,
+                   clock=arm.clock, noise_sigma=config.noise, seed=config.seed,
+                   faults=config.fault_plan, true_intrinsics=true_intr,
+                   effects=profile.image, truth=truth)
 
     def connect(self) -> None:
         """Open the (simulated) device; raises NotConnected if it is already open."""
@@ -89,8 +131,15 @@ class MockCamera(Camera):
 
     def recording_metadata(self) -> dict[str, str]:
         """The scene's exact geometry (``scene_truth``, JSON; see
-        :mod:`armstereo.evaluation.scene_truth`), for scoring reconstructions."""
-        return {"scene_truth": self.scene.truth().to_json()}
+        :mod:`armstereo.evaluation.scene_truth`), for scoring reconstructions; with a mock
+        profile also ``mock_camera_truth`` (JSON: profile name, the TRUE ``T_flange_camera``,
+        ``K`` and ``dist``, the hand-eye offset asked for), for error analysis."""
+        out = {"scene_truth": self.scene.truth().to_json()}
+        if self._truth:
+            import json
+
+            out["mock_camera_truth"] = json.dumps(self._truth)
+        return out
 
     @property
     def ground_truth_depth(self) -> np.ndarray | None:
@@ -115,10 +164,50 @@ class MockCamera(Camera):
                                 f"(grab {self.grabs}, injected {fault.name})")
         self.clock.sleep(self.frame_period)
         stamp = self.clock.now_ns()
-        image, depth = self.scene.render(self._pose_source(), self._intrinsics,
+        image, depth = self.scene.render(self._pose_source(), self.true_intrinsics,
                                          supersample=self.supersample)
+        image = apply_effects(image, self.effects, self._effects_rng)
         if self.noise_sigma > 0:
             noisy = image + self._rng.normal(0.0, self.noise_sigma, image.shape)
             image = np.clip(np.rint(noisy), 0, 255).astype(np.uint8)
         self._last_depth = depth
         return Frame(image=image, timestamp_ns=stamp, depth=depth)
+
+
+def true_mount(mount, profile: MockProfile, seed: int, offset=None):
+    """The camera's TRUE mount (a CameraMount): ``mount``'s hand-eye transform with the
+    profile's seeded error and ``offset`` (dx, dy, dz m, rx, ry, rz deg; camera frame), and its
+    intrinsics with the profile's seeded errors. What a perfect calibration would measure."""
+    from dataclasses import replace
+
+    T = (mount.T_flange_camera @ hand_eye_error(profile.hand_eye, seed)
+         @ offset_transform(offset))
+    return replace(mount, name=f"{mount.name} (true, {profile.name} seed {seed})",
+                   T_flange_camera=T,
+                   intrinsics=true_intrinsics(mount.intrinsics, profile.intrinsics, seed))
+
+
+def true_intrinsics(believed: Intrinsics, errors: IntrinsicsErrors, seed: int) -> Intrinsics:
+    """The camera's TRUE intrinsics: ``believed`` (the mount file's) with seeded errors of the
+    sizes in ``errors`` (focal lengths relative, principal point in px, k1 and k2)."""
+    unit = rng_for(seed, TAG_INTRINSICS).standard_normal(6)  # always drawn: reproducible
+    K = believed.K.copy()
+    K[0, 0] *= 1.0 + errors.focal_rel * unit[0]
+    K[1, 1] *= 1.0 + errors.focal_rel * unit[1]
+    K[0, 2] += errors.principal_px * unit[2]
+    K[1, 2] += errors.principal_px * unit[3]
+    dist = np.zeros(max(5, believed.dist.size))
+    dist[:believed.dist.size] = believed.dist
+    dist[0] += errors.radial * unit[4]
+    dist[1] += errors.radial * unit[5]
+    return Intrinsics(believed.width, believed.height, K, dist)
+
+
+def _flange_source(arm: Arm, model: ArmModel) -> Callable[[], np.ndarray]:
+    """Where the flange really is: the mock arm's physical pose, a controller's report, or
+    (any other arm) forward kinematics of its actual joints through ``model``."""
+    for method in ("true_flange_pose", "controller_flange_pose"):
+        source = getattr(arm, method, None)
+        if callable(source):
+            return source
+    return lambda: model.flange_pose(arm.joint_positions())

@@ -9,6 +9,7 @@ from typing import Any
 from armstereo.backends import option
 from armstereo.validate import non_negative, whole
 from drivers.mock.faults import FAULTS, FaultPlan
+from drivers.mock.profile import PROFILE_NAMES, get_profile, parse_offset
 
 MAX_JOINT_NOISE_RAD = 0.01  # far beyond any arm's repeatability (UR: ~3e-5 rad)
 MAX_CAMERA_NOISE = 64.0  # grey levels; beyond this the image is mostly noise
@@ -16,6 +17,9 @@ MAX_SEED = 2**32 - 1
 
 _FAULT_HELP = ("mock backends only: inject a fault (" + ", ".join(FAULTS) + "; N = which move "
                "or grab, default 2); repeatable")
+_PROFILE_HELP = ("mock backends: how far the mock world is from what the software believes: "
+                 "ideal (exact) or realistic (factory-calibrated arm, encoder noise, camera "
+                 "calibration errors, image effects, a desk scene); see docs/mock-profiles.md")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -35,10 +39,13 @@ class MockArmConfig:
         "--seed", "seed for the mock backends' noise", type=int))
     faults: tuple[str, ...] = field(default=(), metadata=option(
         "--inject-fault", _FAULT_HELP, action="append", metavar="NAME[@N]"))
+    profile: Any = field(default="ideal", metadata=option(
+        "--mock-profile", _PROFILE_HELP, choices=PROFILE_NAMES))
 
     def __post_init__(self) -> None:
         non_negative(self.joint_noise, "--joint-noise", "rad", cap=MAX_JOINT_NOISE_RAD)
         whole(self.seed, "--seed", 0, MAX_SEED)
+        object.__setattr__(self, "profile", get_profile(self.profile))
         object.__setattr__(self, "faults", tuple(self.faults))
         FaultPlan.parse(self.faults)  # names and counts checked now, before anything moves
 
@@ -55,19 +62,30 @@ class MockArmConfig:
 @dataclass(frozen=True, kw_only=True)
 class MockCameraConfig:
     """The ray-cast camera. ``scene`` (a :class:`drivers.mock.scene.Scene`) replaces the
-    default table scene."""
+    profile's scene. ``truth_mount`` (a CameraMount): the mount the profile's camera errors are
+    applied to when it is not the one the software uses (a benchmark that hands the software a
+    perfectly calibrated camera)."""
 
     scene: Any = None
+    truth_mount: Any = None
     noise: float = field(default=0.0, metadata=option(
         "--camera-noise", "mock camera: sensor noise sigma in grey levels", type=float))
     seed: int = field(default=0, metadata=option(
         "--seed", "seed for the mock backends' noise", type=int))
     faults: tuple[str, ...] = field(default=(), metadata=option(
         "--inject-fault", _FAULT_HELP, action="append", metavar="NAME[@N]"))
+    profile: Any = field(default="ideal", metadata=option(
+        "--mock-profile", _PROFILE_HELP, choices=PROFILE_NAMES))
+    hand_eye_offset: Any = field(default=None, metadata=option(
+        "--mock-hand-eye-offset", "mock camera: move its TRUE hand-eye transform by dx,dy,dz "
+        "(m),rx,ry,rz (deg, a rotation vector), in the camera frame, on top of the profile's "
+        "own error; the mount file stays as given"))
 
     def __post_init__(self) -> None:
         non_negative(self.noise, "--camera-noise", "grey levels", cap=MAX_CAMERA_NOISE)
         whole(self.seed, "--seed", 0, MAX_SEED)
+        object.__setattr__(self, "profile", get_profile(self.profile))
+        object.__setattr__(self, "hand_eye_offset", parse_offset(self.hand_eye_offset))
         object.__setattr__(self, "faults", tuple(self.faults))
         FaultPlan.parse(self.faults)
 

@@ -7,7 +7,9 @@ textures are band-limited sums of sinusoids squashed for contrast: blobs of a fe
 never per-pixel white noise, which breaks the Birchfield-Tomasi cost
 (docs/birchfield-tomasi.md §9.1).
 Lighting is Lambertian under a light fixed in the base frame, so it does not depend on the
-viewpoint either.
+viewpoint either, except on glossy primitives (``specular > 0``, Blinn-Phong): their highlights
+move with the camera, as on real varnish, ceramics and plastic. A :class:`PhotoTexture` maps a
+photograph onto a primitive's surface coordinates instead (see ``drivers/mock/desk.py``).
 
 :meth:`Scene.render` casts a ray through every pixel centre (numpy, vectorised) through the
 camera's lens model, including OpenCV distortion, plus several rays per pixel where one would
@@ -116,6 +118,31 @@ class Primitive(ABC):
         self.T_local_base = invert(self.T_base_local)
         self.texture = texture
         self.name = name
+        self.specular = 0.0  # Blinn-Phong highlight strength (0 = matte), share of full white
+        self.shininess = 40.0  # Blinn-Phong exponent: larger = smaller, sharper highlights
+
+    def glossy(self, specular: float, shininess: float = 40.0) -> Primitive:
+        """Make the surface glossy (highlights that move with the viewpoint); returns self."""
+        if not (0.0 <= specular <= 1.0 and shininess > 0):
+            raise ConfigError(f"{self.name}: specular must be in [0, 1] and shininess > 0, got "
+                              f"{specular}, {shininess}")
+        self.specular, self.shininess = float(specular), float(shininess)
+        return self
+
+    def albedo(self, points_base: np.ndarray) -> np.ndarray:
+        """BGR (3, N) float32 of the texture at surface points (3, N), base frame."""
+        if isinstance(self.texture, PhotoTexture):
+            dt = np.asarray(points_base).dtype
+            R, t = self.T_local_base[:3, :3].astype(dt), self.T_local_base[:3, 3:].astype(dt)
+            p_local = np.einsum("ij,jn->in", R, points_base) + t
+            return self.texture.sample(*self.surface_coords(p_local))
+        return self.texture.albedo(points_base, self.T_base_local[:3, 3])
+
+    def surface_coords(self, p_local: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Coordinates (s, t) in metres along the surface of local points (3, N), for
+        photographs: a rectangle's (x, y), a box face's two in-plane axes, a cylinder's arc
+        length and height (its caps: x, y), a sphere's longitude and latitude arcs."""
+        return p_local[0], p_local[1]
 
     @abstractmethod
     def _hit_local(self, o: np.ndarray, dx, dy, dz) -> np.ndarray:
@@ -238,6 +265,12 @@ class Box(Primitive):
         n[k, cols] = np.sign(p[k, cols])
         return n
 
+    def surface_coords(self, p_local):
+        k = np.argmax(np.abs(p_local) / self.half[:, None].astype(p_local.dtype), axis=0)
+        s = np.where(k == 0, p_local[1], p_local[0])
+        t = np.where(k == 2, p_local[1], p_local[2])
+        return s, t
+
     def _truth_dims(self):
         return "box", tuple(float(v) for v in 2 * self.half)
 
@@ -288,6 +321,13 @@ class Cylinder(Primitive):
     def _truth_dims(self):
         return "cylinder", (self.radius, self.height)
 
+    def surface_coords(self, p_local):
+        rho = np.hypot(p_local[0], p_local[1])
+        side = np.abs(self.radius - rho) < np.minimum(np.abs(p_local[2] - self.height),
+                                                       np.abs(p_local[2]))
+        arc = self.radius * np.arctan2(p_local[1], p_local[0])
+        return np.where(side, arc, p_local[0]), np.where(side, p_local[2], p_local[1])
+
     def _corners_local(self):
         r, h = self.radius, self.height
         return np.array([[i * r, j * r, k] for i in (-1, 1) for j in (-1, 1) for k in (0, h)],
@@ -319,6 +359,11 @@ class Sphere(Primitive):
 
     def _truth_dims(self):
         return "sphere", (self.radius,)
+
+    def surface_coords(self, p_local):
+        r = self.radius
+        lat = np.arcsin(np.clip(p_local[2] / r, -1.0, 1.0))
+        return r * np.arctan2(p_local[1], p_local[0]), r * lat
 
     def _corners_local(self):
         r = self.radius
@@ -455,11 +500,16 @@ class Scene:
             out[sel] = self._color(prim, points[sel].T, prim.normals(points[sel].T)).T
         return out
 
-    def _color(self, prim: Primitive, p: np.ndarray, n: np.ndarray) -> np.ndarray:
-        """Shaded BGR (3, N) float32 of points (3, N) with normals (3, N) on ``prim``."""
+    def _color(self, prim: Primitive, p: np.ndarray, n: np.ndarray,
+               eye: np.ndarray | None = None) -> np.ndarray:
+        """Shaded BGR (3, N) float32 of points (3, N) with normals (3, N) on ``prim``; with
+        the camera centre ``eye`` (base) a glossy primitive also gets its highlights."""
         cos = np.abs(np.einsum("i,in->n", self.light_dir, n))
         shade = self.ambient + (1.0 - self.ambient) * cos
-        return prim.texture.albedo(p, prim.T_base_local[:3, 3]) * shade.astype(np.float32)
+        color = prim.albedo(p) * shade.astype(np.float32)
+        if prim.specular > 0 and eye is not None:
+            color = color + _highlight(prim, p, n, self.light_dir, eye)
+        return color
 
     def render(self, T_base_camera: np.ndarray, intrinsics: Intrinsics, *,
                supersample: int = 2) -> tuple[np.ndarray, np.ndarray]:
@@ -532,7 +582,7 @@ class Scene:
         R, o = T[:3, :3].astype(np.float32), T[:3, 3:].astype(np.float32)
         p = o + np.einsum("ij,jn->in", R, np.stack([xn * t, yn * t, t]))  # (3, N) base
         n = prim.normals(p)
-        return self._color(prim, p, n), n
+        return self._color(prim, p, n, T[:3, 3]), n
 
     def _supersample(self, T: np.ndarray, xn: np.ndarray, yn: np.ndarray, s: int):
         """Mean colour (M, 3) of camera rays (xn, yn, 1) taken s * s per pixel."""
@@ -552,6 +602,61 @@ class Scene:
             if sel.size:
                 colors[sel] = self._shade_rays(prim, T, xn[sel], yn[sel], t_best[sel])[0].T
         return colors.reshape(-1, s * s, 3).mean(axis=1)
+
+
+def _highlight(prim: Primitive, p: np.ndarray, n: np.ndarray, light: np.ndarray,
+               eye: np.ndarray) -> np.ndarray:
+    """Blinn-Phong highlight (3, N) float32 (white, grey levels) of points (3, N) with normals
+    (3, N or 1) seen from ``eye``; the normal is taken on the side facing the camera."""
+    v = eye.reshape(3, 1).astype(p.dtype) - p
+    v /= np.linalg.norm(v, axis=0, keepdims=True)
+    n = np.broadcast_to(n, p.shape)
+    n = n * np.sign(np.einsum("in,in->n", n, v) + 1e-12)
+    h = v + light.reshape(3, 1).astype(p.dtype)
+    h /= np.linalg.norm(h, axis=0, keepdims=True)
+    spec = np.clip(np.einsum("in,in->n", n, h), 0.0, 1.0) ** prim.shininess
+    return (np.float32(255.0 * prim.specular) * spec.astype(np.float32))[None, :].repeat(3, 0)
+
+
+class PhotoTexture:
+    """A photograph on a surface: colour at surface coordinates (s, t) in metres
+    (:meth:`Primitive.surface_coords`), the image tiled with ``pixel_size`` metres per pixel,
+    bilinear. A grey image is tinted: ``tint_bgr`` (3 factors, 1 = keep grey). ``gain`` and
+    ``offset`` adjust its contrast (grey levels)."""
+
+    def __init__(self, image: np.ndarray, pixel_size: float, *,
+                 tint_bgr: Sequence[float] = (1.0, 1.0, 1.0), gain: float = 1.0,
+                 offset: float = 0.0):
+        img = np.asarray(image)
+        if img.ndim == 2:
+            img = img[..., None].repeat(3, axis=2)
+        if img.ndim != 3 or img.shape[2] != 3 or img.shape[0] < 2 or img.shape[1] < 2:
+            raise ConfigError(f"a photo texture needs an (H, W) or (H, W, 3) image, got "
+                              f"{np.shape(image)}")
+        if not pixel_size > 0:
+            raise ConfigError(f"photo texture pixel size must be > 0 m, got {pixel_size}")
+        tinted = img.astype(np.float32) * np.asarray(tint_bgr, np.float32) * gain + offset
+        self.image = np.clip(tinted, 0, 255).astype(np.float32)
+        self.pixel_size = float(pixel_size)
+
+    def sample(self, s: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """BGR (3, N) float32 at surface coordinates (s, t) (metres, arrays of N)."""
+        h, w = self.image.shape[:2]
+        u = np.mod(np.asarray(s, np.float64).ravel() / self.pixel_size, w).astype(np.float32)
+        v = np.mod(np.asarray(t, np.float64).ravel() / self.pixel_size, h).astype(np.float32)
+        n = u.size
+        if n == 0:
+            return np.zeros((3, 0), np.float32)
+        cols = _REMAP_COLS  # cv2.remap maps must stay below 32767 in each dimension
+        rows = -(-n // cols)
+        mu, mv = np.zeros(rows * cols, np.float32), np.zeros(rows * cols, np.float32)
+        mu[:n], mv[:n] = u, v
+        out = cv2.remap(self.image, mu.reshape(rows, cols), mv.reshape(rows, cols),
+                        cv2.INTER_LINEAR, borderMode=cv2.BORDER_WRAP)
+        return out.reshape(-1, 3)[:n].T
+
+
+_REMAP_COLS = 1024
 
 
 # A pixel is re-rendered with several rays when its 3x3 neighbourhood spans a silhouette or a

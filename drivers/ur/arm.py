@@ -17,6 +17,8 @@ How ur_rtde's traps are avoided:
 - Joint readings wait for two new RTDE packages (the state right after a move can be one period
   stale) and keep the controller timestamp they belong to.
 - Kinematics are local (ArmModel); ``getForwardKinematics`` is never used (stale registers).
+  At connect the controller's own calibrated DH table is read from its read-only primary
+  interface (:mod:`drivers.ur.primary`) and, when read, replaces the model's kinematics.
 """
 
 from __future__ import annotations
@@ -47,11 +49,13 @@ from armstereo.errors import (
     NotConnected,
     ProtectiveStop,
 )
+from armstereo.robot.dh import NOMINAL_MODELS
 from armstereo.transforms import T_from_ur_pose, as_rigid, matrix_to_rotvec, ur_pose_from_T
 from armstereo.validate import host as validate_host
 from armstereo.validate import positive
 from drivers.ur.channel import ControlChannel
 from drivers.ur.diagnose import connection_failed
+from drivers.ur.primary import read_arm_kinematics
 from drivers.ur.probe import DASHBOARD_PORT, ControllerInfo, check_controller, check_port
 from drivers.ur.safety import ControllerState
 
@@ -78,6 +82,9 @@ STOPJ_DECELERATION = 4.0    # rad/s^2: stops a 1 rad/s move within 0.13 rad
 SETTLED_TOL = (2e-4, 2e-3)  # (m, rad) at the target + isSteady counts as done (progress fallback)
 REACHED_TOL = (1e-3, 1e-2)  # (m, rad) a finished move must end this close to its target
 FK_WARN_TOL = (1e-3, 2e-3)          # controller vs model FK: calibration differs, warn
+# With the controller's own table, FK reproduces its pose to ~1e-12 m: more than this means the
+# table is not this arm's (the per-view check in recordings uses the same 0.1 mm).
+FK_CALIBRATED_WARN_TOL = (1e-4, 1e-4)
 FK_WRONG_MODEL_TOL = (0.02, 0.05)   # controller vs model FK: not this robot model, refuse
 UNLOCK_RETRY_S = 0.5        # dashboard refuses an unlock within 5 s of the stop; retry
 
@@ -102,7 +109,10 @@ class URArm(Arm):
     RTDE client). ``clock``: timestamps, sleeps and deadlines (default RealClock).
 
     Attributes after a joint reading: ``last_controller_timestamp`` (s, controller clock) and
-    ``last_host_timestamp_ns``. After connect: ``controller`` (ControllerInfo) and
+    ``last_host_timestamp_ns``. After connect: ``controller`` (ControllerInfo),
+    ``kinematics`` (``drivers.ur.primary.ArmKinematics``: the controller's calibrated table, or
+    the nominal one with warnings when it could not be read), ``model`` (the model given, or,
+    when the table was read, the calibrated model built from it with the given mount) and
     ``fk_mismatch`` (m, rad) between the controller's flange pose and the model's FK.
     """
 
@@ -124,6 +134,7 @@ class URArm(Arm):
         self.clock = clock if clock is not None else RealClock()
         self.name = f"UR arm at {self.host}"
         self.controller: ControllerInfo | None = None
+        self.kinematics = None
         self.fk_mismatch: tuple[float, float] | None = None
         self.last_controller_timestamp: float | None = None
         self.last_host_timestamp_ns: int | None = None
@@ -158,6 +169,7 @@ class URArm(Arm):
         rtde_control, rtde_receive, _ = _import_ur_rtde()
         self.controller = check_controller(self.host, self.connect_timeout)
         log.info("UR controller at %s: %s", self.host, self.controller)
+        self._read_calibrated_kinematics()
         try:
             self._rr = self._open_receive(rtde_receive)
             self._connected = True
@@ -235,6 +247,19 @@ class URArm(Arm):
             raise ConnectionFailed(f"UR controller at {self.host} refused setTcp (is ur_rtde's "
                                    f"control script running?)")
 
+    def _read_calibrated_kinematics(self) -> None:
+        """Read the controller's DH table (read-only port); use it when it was read."""
+        name = str(getattr(self.model, "name", "")).lower()
+        expected = name if name in NOMINAL_MODELS else None
+        self.kinematics = read_arm_kinematics(self.host, expected, timeout=self.connect_timeout)
+        for note in self.kinematics.warnings:
+            log.info("UR controller at %s: %s", self.host, note)
+        if self.kinematics.calibrated:
+            from armstereo.kinematics import ArmModel
+
+            self.model = ArmModel.from_dh(self.kinematics.table,
+                                          mount=getattr(self.model, "mount", None))
+
     def _cross_check_kinematics(self) -> None:
         s = self._fresh_sample()
         lin, ang = _pose_error(np.asarray(self.model.flange_pose(s.q), dtype=float), s.tcp_pose)
@@ -246,9 +271,18 @@ class URArm(Arm):
                 f"UR controller at {self.host} ({self.controller}) reports a flange pose "
                 f"{text} away from the {name} model's FK (limit {FK_WRONG_MODEL_TOL[0] * 1000:g} "
                 f"mm): is this arm really a {name}?")
-        if lin > FK_WARN_TOL[0] or ang > FK_WARN_TOL[1]:
-            log.warning("UR controller at %s: flange pose differs from the %s model's FK by %s "
-                        "(factory calibration?); camera poses use the model", self.host, name, text)
+        calibrated = self.kinematics is not None and self.kinematics.calibrated
+        tol = FK_CALIBRATED_WARN_TOL if calibrated else FK_WARN_TOL
+        if lin > tol[0] or ang > tol[1]:
+            if calibrated:
+                log.warning("UR controller at %s: its flange pose differs from FK with its own "
+                            "calibrated table by %s (allowed %g mm): the table read is not "
+                            "this arm's, camera poses will be off", self.host, text,
+                            tol[0] * 1000)
+            else:
+                log.warning("UR controller at %s: flange pose differs from the %s model's FK "
+                            "by %s (its calibrated table was not read); camera poses use the "
+                            "model", self.host, name, text)
 
     # ------------------------------------------------------------------------------- reading
     def joint_positions(self) -> np.ndarray:
@@ -262,6 +296,16 @@ class URArm(Arm):
         self.last_controller_timestamp = s.controller_time
         self.last_host_timestamp_ns = self.clock.now_ns()
         return s.q.copy()
+
+    def joints_and_controller_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        """Actual joints (6,) rad and the controller's ``T_base_flange`` (4x4, m; TCP pose with
+        the zero TCP set at connect) from ONE fresh RTDE package, so they belong together.
+        Sets the timestamps as :meth:`joint_positions` does."""
+        self._require_connected()
+        s = self._fresh_sample()
+        self.last_controller_timestamp = s.controller_time
+        self.last_host_timestamp_ns = self.clock.now_ns()
+        return s.q.copy(), T_from_ur_pose(s.tcp_pose)
 
     def controller_flange_pose(self) -> np.ndarray:
         """``T_base_flange`` (4x4, m) as the controller reports it (getActualTCPPose with the zero

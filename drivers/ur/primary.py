@@ -99,12 +99,22 @@ def read_primary(host: str, *, port: int = DEFAULT_PORT,
     if not (np.isfinite(timeout) and timeout > 0):
         raise ConfigError(f"timeout must be positive seconds, got {timeout!r}")
     stream = _open_read_only(host, port, timeout)
-    reading = PrimaryReading(host, port)
-    start = time.monotonic()
     try:
-        _read_until_kinematics(stream, reading, start + timeout, timeout)
+        return read_primary_stream(stream, host, port, timeout=timeout)
     finally:
         stream.close()
+
+
+def read_primary_stream(stream, host: str, port: int, *,
+                        timeout: float = KINEMATICS_TIMEOUT_S) -> PrimaryReading:
+    """Read an already open, read-only primary stream (anything ``select`` accepts with a
+    ``read(n)``) until the first full KINEMATICS_INFO, at most ``timeout`` s. ``host`` and
+    ``port`` only name the source in warnings. This is what :func:`read_primary` does after
+    connecting; simulated controllers (the mock arm) feed their broadcast through it, so their
+    tables are decoded by exactly the code that decodes a real controller's."""
+    reading = PrimaryReading(host, port)
+    start = time.monotonic()
+    _read_until_kinematics(stream, reading, start + timeout, timeout)
     reading.seconds = time.monotonic() - start
     return reading
 
@@ -229,6 +239,14 @@ def read_arm_kinematics(host: str, model: str | None = None, *, port: int = DEFA
         reading = read_primary(host, port=port, timeout=timeout)
     except ConnectionFailed as err:
         return _nominal(expected, None, [str(err)])
+    return kinematics_from_reading(reading, expected)
+
+
+def kinematics_from_reading(reading: PrimaryReading, model: str | None = None) -> ArmKinematics:
+    """The table to use from what :func:`read_primary` (or :func:`read_primary_stream`) got:
+    the controller's calibrated table, or the nominal table of ``model`` with warnings. Raises
+    ConfigError as :func:`read_arm_kinematics` does."""
+    expected = str(model).lower() if model is not None else None
     if reading.kinematics is None:
         return _nominal(expected, reading, reading.warnings)
     table, difference = _controller_table(reading, expected)

@@ -9,4 +9,11 @@ protocol), ``motion`` (moveJ/moveL trajectories), ``faults`` (fault switches),
 ``primary_server`` (the read-only primary/secondary state stream), ``harness``
 (starting and steering it from a test). Run it from the repository root with
 ``python -m tests.rtde_emulator --help``.
+
+By default the emulated arm carries a factory calibration (``DEFAULT_KINEMATICS``, a seeded
+synthetic one), like every real arm: its motion and reported poses follow that table, and it
+broadcasts it on the primary stream. ``--kinematics nominal`` gives URSim's exact nominal arm.
 """
+
+DEFAULT_CALIBRATION_SEED = 1
+DEFAULT_KINEMATICS = f"calibrated:{DEFAULT_CALIBRATION_SEED}"

@@ -24,6 +24,7 @@ from armstereo.kinematics import ArmModel, ready_configuration
 from armstereo.robot.dh import DHTable, nominal_table
 from armstereo.robot.synthetic import synthetic_calibration
 
+from . import DEFAULT_KINEMATICS
 from .controller import Controller
 from .faults import MoveFault, Settings
 from .primary_server import start_primary
@@ -39,9 +40,10 @@ def _parse(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--q0", default=None, help="initial joints, JSON list (rad)")
     p.add_argument("--version", default=DEFAULT_VERSION, help="controller software version")
     p.add_argument("--settings", default="{}", help="initial settings, JSON object")
-    p.add_argument("--kinematics", default="nominal",
+    p.add_argument("--kinematics", default=DEFAULT_KINEMATICS,
                    help="the arm's true kinematics: 'nominal' (exact nominal DH, broadcast as "
-                        "URSim does) or 'calibrated:SEED' (a seeded factory calibration)")
+                        "URSim does) or 'calibrated:SEED' (a seeded factory calibration; "
+                        f"default {DEFAULT_KINEMATICS})")
     return p.parse_args(argv)
 
 

@@ -7,7 +7,15 @@ import csv
 import numpy as np
 import pytest
 
-from armstereo.apps.sweep import Measurement, Target, best_baseline, measure_targets
+from armstereo.apps.sweep import (
+    Measurement,
+    SceneMeasurement,
+    Target,
+    best_baseline,
+    best_scene_baseline,
+    format_scene_table,
+    measure_targets,
+)
 from armstereo.cli.main import main
 from armstereo.errors import ConfigError
 
@@ -58,3 +66,32 @@ def test_bad_targets_and_baselines_are_refused(capsys):
     assert "--baselines" in capsys.readouterr().err
     assert main(["sweep", "--arm", "ur", "--host", "127.0.0.1", "--baselines", "0.1"]) == 2
     assert "--target" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_desk_sweep_on_the_realistic_profile(tmp_path, capsys):
+    """The realistic profile sweeps the desk (the demo scene), where long baselines lose
+    pixels to occlusion and perspective change, which planar targets never do."""
+    out = tmp_path / "desk"
+    assert main(["sweep", "--mock-profile", "realistic", "--baselines", "0.05,0.3",
+                 "--method", "sgbm", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    rows = {float(line.split("cm")[0]): line for line in text.splitlines()
+            if line.strip().endswith("mm") and "cm |" in line}
+    assert set(rows) == {5.0, 30.0}
+    density = {b: float(r.split("|")[3].strip(" %")) for b, r in rows.items()}
+    assert density[30.0] < density[5.0] - 10  # 30 cm: a third of the view has no match
+    assert "best baseline for the desk at 0.55 m: 5 cm" in text
+    assert (out / "sweep.csv").exists() and (out / "sweep.png").exists()
+    assert main(["sweep", "--mock-profile", "realistic", "--distances", "1,2",
+                 "--out", str(tmp_path / "x")]) == 2
+
+
+def test_scene_sweep_best_baseline_keeps_the_density_target():
+    ms = [SceneMeasurement(0.05, 0.004, 0.7, 0.95, 1.0),
+          SceneMeasurement(0.1, 0.003, 0.8, 0.93, 1.0),
+          SceneMeasurement(0.3, 0.001, 0.9, 0.6, 1.0)]
+    assert best_scene_baseline(ms) == 0.1
+    assert best_scene_baseline(ms[2:]) is None
+    lines = format_scene_table(ms)
+    assert len(lines) == 5 and "30.0 cm" in lines[-1] and "60.0 %" in lines[-1]

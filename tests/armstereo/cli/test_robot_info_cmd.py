@@ -108,3 +108,16 @@ def test_wrong_model_and_bad_arguments(emu, run):
     assert code == 2 and "really a ur10e" in err
     code, _, err = run("--host", emu.host, "--save", "arm.urdf")
     assert code == 2 and ".json" in err
+
+
+def test_robot_file_is_checked_against_the_controller(emu, run, tmp_path):
+    from armstereo.robot.model_file import save_model_file
+
+    mine = save_model_file(tmp_path / "mine.json", TRUTH)
+    code, out, _ = run("--host", emu.host, "--json", "--robot", str(mine))
+    assert code == 0 and json.loads(out)["robot_file_matches"] is True
+    other = save_model_file(tmp_path / "other.json", synthetic_calibration("ur5e", SEED + 1))
+    code, out, err = run("--host", emu.host, "--json", "--robot", str(other))
+    s = json.loads(out)
+    assert code == 0 and s["robot_file_matches"] is False
+    assert any("is not the table this controller reports" in w for w in s["warnings"])

@@ -18,7 +18,8 @@ from tests.support.recordings import (
 )
 
 TOP_KEYS = {"file", "size_bytes", "indexed", "truncated", "duration_s", "views", "channels",
-            "pairs", "calibration", "metadata", "warnings"}
+            "pairs", "calibration", "metadata", "warnings", "fk_vs_controller_max_mm",
+            "fk_vs_controller_max_deg"}
 PAIR_KEYS = {"pair", "left_view", "right_view", "commanded_baseline_m", "achieved_baseline_m",
              "direction", "complete", "image_size"}
 CALIBRATION_KEYS = {"width", "height", "fx", "fy", "cx", "cy", "distortion_model", "D",
@@ -49,6 +50,7 @@ def test_json_summary_has_the_documented_keys(recording, capsys):
     s = json.loads(capsys.readouterr().out)
     assert set(s) == TOP_KEYS
     assert s["indexed"] is True and s["truncated"] is False and s["views"] == 3
+    assert s["fk_vs_controller_max_mm"] is None  # no controller pose in a synthetic recording
     assert s["size_bytes"] == recording.stat().st_size and s["duration_s"] > 2.5
     assert all(set(c) == {"topic", "schema", "encoding", "messages"} for c in s["channels"])
     assert {c["topic"]: c["messages"] for c in s["channels"]}["/capture/events"] == 5

@@ -4,6 +4,7 @@ SimClock, so polling loops and timeouts cost no wall time."""
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 import socket
@@ -29,9 +30,10 @@ from armstereo.errors import (
     NotConnected,
     ProtectiveStop,
 )
+from armstereo.robot.dh import nominal_table
 from armstereo.transforms import make_T, rot_x, rot_y, rot_z, ur_pose_from_T
 from drivers.ur import arm as arm_module
-from drivers.ur import probe
+from drivers.ur import primary, probe
 from drivers.ur.arm import RECEIVE_VARIABLES, URArm
 from drivers.ur.channel import ControlChannel
 from drivers.ur.probe import ControllerInfo
@@ -163,6 +165,10 @@ class FakeController:
             return ControllerInfo(host, (5, 12, 0, 0))
 
         monkeypatch.setattr(arm_module, "check_controller", fake_check)
+        # No primary stream here (and no traffic to HOST): the table is "not read".
+        monkeypatch.setattr(arm_module, "read_arm_kinematics",
+                            lambda host, model, timeout: primary._nominal(
+                                model, None, ["no primary stream in this test"]))
         monkeypatch.setattr(arm_module, "check_port",
                             lambda host, port, timeout, what: ctl.log("check_port", host, port))
 
@@ -403,6 +409,26 @@ def test_fk_cross_check_warns_then_refuses_wrong_model(ctl, caplog):
     with pytest.raises(ConfigError, match="50.00 mm"):
         URArm(HOST, FakeModel(), clock=ctl.clock).connect()
     assert {"stopScript", "control.disconnect", "receive.disconnect"} <= set(ctl.names())
+
+
+@pytest.mark.parametrize(("offset_m", "warned"), [(5e-5, False), (2e-4, True)])
+def test_fk_cross_check_is_tight_once_the_controllers_table_was_read(ctl, monkeypatch, caplog,
+                                                                    offset_m, warned):
+    """With the controller's own table, 0.2 mm between its pose and our FK means the table is
+    not this arm's (the nominal-model tolerance is 1 mm)."""
+    table = dataclasses.replace(nominal_table("ur5e"), source="controller",
+                                calibration_status=2)
+    read = primary.ArmKinematics(table, None, ())
+    monkeypatch.setattr(arm_module, "read_arm_kinematics", lambda host, model, timeout: read)
+    monkeypatch.setattr("armstereo.kinematics.ArmModel.from_dh",
+                        classmethod(lambda cls, table, mount=None: FakeModel()))
+    ctl.tcp_offset_error = np.array([offset_m, 0, 0, 0, 0, 0])
+    with caplog.at_level(logging.WARNING, logger="drivers.ur.arm"):
+        ur = URArm(HOST, FakeModel(), clock=ctl.clock)
+        ur.connect()
+    assert ur.kinematics.calibrated and isinstance(ur.model, FakeModel)
+    assert ("not this arm's" in caplog.text) is warned
+    ur.close()
 
 
 def test_missing_ur_rtde_gives_install_hint(ctl, monkeypatch):

@@ -2,12 +2,16 @@
 UR controller (tests/rtde_emulator): RTDE, dashboard and script port on a loopback address of
 its own, in its own process, playing ur_rtde's control-script register protocol in real time.
 
+The emulated arm carries a factory calibration (the emulator's default kinematics), which
+URArm and the capture read from its primary stream at connect.
+
 What these tests cannot show (only a real arm can): real motion timing and repeatability,
-PolyScope's remote-control and safety settings, the controller's own kinematic calibration.
+PolyScope's remote-control and safety settings, a real controller's own kinematic calibration.
 """
 
 from __future__ import annotations
 
+import json
 import re
 import subprocess
 import sys
@@ -29,10 +33,14 @@ from armstereo.errors import (
 )
 from armstereo.kinematics import ArmModel
 from armstereo.recording import Recording
+from armstereo.recording.inspect import summarize
+from armstereo.robot.dh import pose_difference
+from armstereo.robot.synthetic import synthetic_calibration
 from drivers.mock.start_poses import table_start as mock_start_configuration
 from drivers.ur.arm import URArm
 from drivers.ur.channel import ControlChannel
 from drivers.ur.probe import rtde_handshake
+from tests.rtde_emulator import DEFAULT_CALIBRATION_SEED
 from tests.rtde_emulator.harness import EmulatedController, free_loopback_address
 
 # Real-time controller emulation: about 45 s for the file.
@@ -45,7 +53,9 @@ FAIL_FAST_S = 5.0  # a refused or silent controller must be reported within seco
 
 @pytest.fixture(scope="module")
 def model() -> ArmModel:
-    return ArmModel.load("ur5e", mount="default_wrist_camera")
+    """The emulated UR5e's own calibrated kinematics (what URArm reads at connect)."""
+    return ArmModel.from_dh(synthetic_calibration("ur5e", DEFAULT_CALIBRATION_SEED),
+                            mount="default_wrist_camera")
 
 
 @pytest.fixture(scope="module")
@@ -172,6 +182,17 @@ def test_cli_capture_against_the_emulator_achieves_the_baseline(start_emulator, 
     assert "recorded 3 views, 2 pair(s)" in done.stdout
     rec = assert_views_readable(out, 3)
     assert rec.metadata["arm"] == "ur" and rec.metadata["host"] == emu.host
+    # The controller's calibrated table was read at connect and recorded; every view's pose
+    # (our FK of the recorded joints) is within 0.01 mm of the controller's own.
+    assert rec.metadata["kinematics_source"] == "controller"
+    assert rec.metadata["dh_sha256"] == model.dh.sha256
+    assert json.loads(rec.metadata["dh_table"]) == model.dh.as_dict()
+    assert rec.metadata["calibration_status"] == "2"
+    for v in rec.views:
+        lin, ang = pose_difference(v.T_base_flange, v.controller_T_base_flange)
+        assert lin < 1e-5 and ang < 1e-6
+    summary = summarize(rec)
+    assert summary["fk_vs_controller_max_mm"] < 0.01 and summary["warnings"] == []
     # The recorded joints are the controller's: camera poses from their FK, 0.1 m apart.
     cams = [model.camera_pose(v.joint_positions)[:3, 3] for v in rec.views]
     R_base_camera = model.camera_pose(q_start)[:3, :3]
@@ -194,7 +215,10 @@ def test_cli_capture_against_the_emulator_achieves_the_baseline(start_emulator, 
 def test_urarm_reads_and_moves_through_ur_rtde(shared, model):
     arm, emu = shared
     assert arm.status().state is ArmState.NORMAL
-    assert arm.controller.version == (5, 12, 0, 1101534) and arm.fk_mismatch == (0.0, 0.0)
+    assert arm.controller.version == (5, 12, 0, 1101534)
+    # FK with the table read at connect reproduces the controller's pose (to the rounding of
+    # its rotation-vector TCP pose).
+    assert arm.kinematics.calibrated and max(arm.fk_mismatch) < 1e-9
     q1, t1 = arm.joint_positions(), arm.last_controller_timestamp
     q2, t2 = arm.joint_positions(), arm.last_controller_timestamp
     assert np.allclose(q2, q1) and t2 > t1  # each reading comes from a newer RTDE package
@@ -268,12 +292,13 @@ def test_cb3_controller_another_model_and_upper_range_registers(start_emulator):
     """A CB3 (PolyScope 3.15: 125 Hz, no serial-number or remote-control queries) with a UR5,
     driven through input/output registers 24-47: the rate ur_rtde asks for is honoured, the
     register offset comes from the uploaded script, the model's kinematics are used."""
-    ur5 = ArmModel.load("ur5")
     q0 = np.array([0.2, -1.7, 1.6, -1.5, -1.57, 0.3])
     emu = start_emulator(robot="ur5", q0=q0, version="3.15.7.106331")
-    arm = URArm(emu.host, ur5, upper_range_registers=True)
+    arm = URArm(emu.host, ArmModel.load("ur5"), upper_range_registers=True)
     arm.connect()
+    ur5 = arm.model  # the CB3's calibrated UR5 table, read at connect
     try:
+        assert arm.kinematics.calibrated and ur5.dh.model == "ur5"
         assert arm.controller.series == "CB3" and emu.rate_hz == 125.0
         arm.joint_positions()
         t1 = arm.last_controller_timestamp

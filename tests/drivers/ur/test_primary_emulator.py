@@ -129,7 +129,7 @@ def test_stream_faults(emu, fault, calibrated_expected):
 
 
 def test_nominal_emulator_broadcasts_like_ursim():
-    emu = EmulatedController()
+    emu = EmulatedController(kinematics="nominal")
     try:
         result = read_arm_kinematics(emu.host)
     finally:
