@@ -379,9 +379,12 @@ def test_fault_during_a_capture_move_stops_and_keeps_the_views(
     emu = start_emulator()
     emu.inject(fault, move=2, at=0.5)  # move 2: from view 1 to view 2
     out = tmp_path / "rec.mcap"
-    assert main(capture_args(emu.host, out, *FAST)) == 4
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and re.search(pattern, err[0]) and "2 view(s) kept" in err[0], err
+    assert main(["-q", *capture_args(emu.host, out, *FAST)]) == 4
+    lines = capsys.readouterr().err.strip().splitlines()
+    # one error line; a dropped link may add warnings that the stop could not be sent
+    err = [line for line in lines if line.startswith("armstereo capture: error:")]
+    assert len(err) == 1 and re.search(pattern, err[0]) and "2 view(s) kept" in err[0], lines
+    assert all("Traceback" not in line for line in lines)
     assert len(capture_errors) == 1 and type(capture_errors[0]) is error
     assert_views_readable(out, 2)
 
@@ -408,7 +411,7 @@ def test_controller_slow_to_start_streaming(start_emulator, tmp_path, capsys):
     emu = start_emulator(settings={"start_delay_s": 30.0})
     out = tmp_path / "rec.mcap"
     t0 = time.monotonic()
-    assert main(capture_args(emu.host, out, *FAST)) == 4
+    assert main(["-q", *capture_args(emu.host, out, *FAST)]) == 4
     assert time.monotonic() - t0 < FAIL_FAST_S
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "gave no first data package within 2 s" in err[0], err
