@@ -82,16 +82,16 @@ def extract_mesh(volume: TsdfVolume, min_weight: float = DEFAULT_MIN_WEIGHT) -> 
 
     if not min_weight > 0:
         raise ConfigError(f"min_weight must be > 0, got {min_weight}")
-    mask = cube_mask(volume.observed(min_weight))
+    observed = volume.observed(min_weight)
+    mask = cube_mask(observed)
     crop = _bounds(mask)
     if crop is None:
         return Mesh.empty()
     lo = np.array([s.start for s in crop]) - 1  # the cubes need their near corners too
-    lo = np.maximum(lo, 0)
     box = tuple(slice(a, s.stop) for a, s in zip(lo, crop, strict=True))
     values, sub_mask = volume.tsdf[box], mask[box]
-    inside = values[sub_mask]
-    if not (inside.min() < 0 < inside.max()):
+    seen = values[observed[box]]
+    if not (seen.min() <= 0 <= seen.max()) or seen.min() == seen.max():
         return Mesh.empty()
     try:
         verts, faces, _, _ = marching_cubes(values, 0.0, mask=sub_mask, allow_degenerate=False)

@@ -38,3 +38,26 @@ def ring_frames(n: int = 8, *, elevation_deg: float = 55.0, radius: float = 0.45
         K[1, 2] += cy_shift
         frames.append(DepthFrame(depth, K, T, image, pair=k, label=f"view {k}"))
     return frames, scene.truth()
+
+
+def small_model():
+    """UR5e with the default mount's hand-eye but the SMALL camera (fast to render and match)."""
+    from armstereo.kinematics import ArmModel
+    from armstereo.mount import CameraMount
+
+    default = CameraMount.load(None)
+    mount = CameraMount("small_test_camera", default.T_flange_camera, SMALL, default.source)
+    return ArmModel.load("ur5e", mount=mount)
+
+
+def record_small_scan(path, views: str = "ring:4", *, camera_noise: float = 1.0,
+                      elevation_deg: float = 55.0, radius: float = 0.45, baseline: float = 0.06):
+    """A mock multi-view scan of the table scene with the SMALL camera into ``path``."""
+    from armstereo.capture.backends import mock_start_configuration
+    from armstereo.capture.scan_plan import plan_scan
+    from armstereo.fusion.mock_scan import record_mock_scan
+
+    model = small_model()
+    plan = plan_scan(model, mock_start_configuration(model), TARGET, views=views, radius=radius,
+                     elevation_deg=elevation_deg, baseline=baseline)
+    return plan, record_mock_scan(path, plan, model, camera_noise=camera_noise)
