@@ -62,7 +62,8 @@ class FusionOptions:
     (:func:`armstereo.fusion.roi.auto_roi`); ``workers`` None = :func:`default_workers`, 1 =
     reconstruct in this process (more: worker processes, started with ``spawn``, so a script
     calling this needs the ``if __name__ == "__main__":`` guard); ``depth_source`` ``truth``
-    fuses the mock camera's ground-truth depth instead of stereo (a plumbing check)."""
+    fuses the mock camera's ground-truth depth instead of stereo (a plumbing check);
+    ``score`` False skips scoring against scene truth."""
 
     voxel: float = DEFAULT_VOXEL_M
     trunc: float | None = None
@@ -72,6 +73,7 @@ class FusionOptions:
     workers: int | None = None
     min_views: int = DEFAULT_MIN_VIEWS
     interpolation: str = "bilinear"
+    score: bool = True
     seed: int = 0
 
     @property
@@ -93,8 +95,10 @@ class FusionProgress:
 
 
 @dataclass
-class _PairResult:
-    """What one pair contributes: its depth frame, a spread of its raw points, timings."""
+class PairDepth:
+    """What one pair contributes: its depth frame (to fuse), up to RAW_POINTS_PER_PAIR of its
+    raw base-frame points (a random, seeded subset: for the region of interest and to score
+    the raw cloud), how many raw points it had, and its timings (s)."""
 
     pair: int
     left_view: int
@@ -114,8 +118,9 @@ def fuse_recording(recording: str | Path, out_dir: str | Path,
     report (also written as report.json).
 
     ``truth`` scores the model; by default it comes from the recording's metadata key
-    ``scene_truth`` when present. Raises RecordingError for a recording without pairs,
-    ConfigError for bad options or a region of interest no view sees.
+    ``scene_truth`` when present (``options.score=False`` skips scoring). Raises
+    RecordingError for a recording without pairs, ConfigError for bad options or a region of
+    interest no view sees.
     """
     _check_options(options)
     out = _output_dir(out_dir)
@@ -126,7 +131,7 @@ def fuse_recording(recording: str | Path, out_dir: str | Path,
         pairs = rec.require_pairs()
         truth = truth if truth is not None else _truth_from(rec)
     with _timed(timings, "reconstruct"):
-        results, workers = _depth_frames(Path(recording), rec, options, progress)
+        results, workers = reconstruct_pairs(recording, options, progress, recording=rec)
     frames = [r.frame for r in results]
     with _timed(timings, "roi"):
         roi, roi_source = _region(options, results)
@@ -163,7 +168,7 @@ def fuse_recording(recording: str | Path, out_dir: str | Path,
         write_fusion_mcap(paths["mcap"], mesh, cloud, cloud_colors, views,
                           {"source": str(recording), "pairs": str(len(results)),
                            "voxel_m": repr(options.voxel), "roi_m": str(roi)})
-    if truth is not None:
+    if truth is not None and options.score:
         with _timed(timings, "score"):
             report["accuracy"] = _score(truth, pairs, roi, mesh, cloud, results, options)
     timings["total"] = time.perf_counter() - t_all
@@ -231,9 +236,15 @@ def default_workers(pairs: int) -> int:
     return max(1, min((cores or 1) // CORES_PER_WORKER, pairs))
 
 
-def _depth_frames(path: Path, rec: Recording, o: FusionOptions, progress):
-    """Per-pair results in pair order, and the number of processes used."""
-    pairs = rec.pairs
+def reconstruct_pairs(path: str | Path, o: FusionOptions = FusionOptions(),
+                      progress: Callable[[FusionProgress], None] | None = None, *,
+                      recording: Recording | None = None) -> tuple[list[PairDepth], int]:
+    """Depth of every complete pair of the recording at ``path`` (``o.depth_source``, on
+    ``o.workers`` processes), in pair order, and the number of processes used. ``recording``
+    is the already opened file, if any."""
+    path = Path(path)
+    rec = recording if recording is not None else Recording.open(path)
+    pairs = rec.require_pairs()
     if o.depth_source == "truth":
         results = []
         for k in range(len(pairs)):
@@ -250,7 +261,7 @@ def _depth_frames(path: Path, rec: Recording, o: FusionOptions, progress):
         return results, 1
     # spawn, not fork: the parent may hold OpenCV/numba threads whose locks a fork would copy.
     ctx = multiprocessing.get_context("spawn")
-    results: list[_PairResult | None] = [None] * len(pairs)
+    results: list[PairDepth | None] = [None] * len(pairs)
     with ProcessPoolExecutor(workers, mp_context=ctx) as pool:
         futures = {pool.submit(_pair_job_in_worker, str(path), k, o): k
                    for k in range(len(pairs))}
@@ -263,7 +274,7 @@ def _depth_frames(path: Path, rec: Recording, o: FusionOptions, progress):
     return results, workers
 
 
-def _report_pair(progress, r: _PairResult, done: int, total: int) -> None:
+def _report_pair(progress, r: PairDepth, done: int, total: int) -> None:
     _say(progress, FusionProgress("reconstruct", r.pair, done, total, r.seconds,
                                   f"{r.raw_point_count} points"))
 
@@ -271,7 +282,7 @@ def _report_pair(progress, r: _PairResult, done: int, total: int) -> None:
 _WORKER_RECORDINGS: dict[str, Recording] = {}
 
 
-def _pair_job_in_worker(path: str, k: int, o: FusionOptions) -> _PairResult:
+def _pair_job_in_worker(path: str, k: int, o: FusionOptions) -> PairDepth:
     """Reconstruct pair ``k`` in a worker process (the recording is opened once per worker;
     the matcher runs single-threaded there: the processes already share the cores)."""
     rec = _WORKER_RECORDINGS.get(path)
@@ -281,7 +292,7 @@ def _pair_job_in_worker(path: str, k: int, o: FusionOptions) -> _PairResult:
 
 
 def _pair_job(rec: Recording, k: int, o: FusionOptions, threads: int | None = None
-              ) -> _PairResult:
+              ) -> PairDepth:
     """Depth frame, raw points (a spread subset) and timings of the k-th complete pair."""
     from armstereo.pipeline import reconstruct_pair
 
@@ -302,13 +313,13 @@ def _pair_job(rec: Recording, k: int, o: FusionOptions, threads: int | None = No
     rng = np.random.default_rng(o.seed + k)
     keep = (rng.choice(len(pts), RAW_POINTS_PER_PAIR, replace=False)
             if len(pts) > RAW_POINTS_PER_PAIR else np.arange(len(pts)))
-    return _PairResult(pair.index, left.index, right.index, int(left.timestamp_ns), frame,
+    return PairDepth(pair.index, left.index, right.index, int(left.timestamp_ns), frame,
                        np.asarray(pts, dtype=np.float32)[np.sort(keep)], len(pts),
                        time.perf_counter() - t0, timings)
 
 
 # ---------------------------------------------------------------------------- roi, report
-def _region(o: FusionOptions, results: list[_PairResult]) -> tuple[Roi, str]:
+def _region(o: FusionOptions, results: list[PairDepth]) -> tuple[Roi, str]:
     if o.roi is not None:
         return o.roi, "given"
     roi = auto_roi([r.frame for r in results], [r.raw_points for r in results],
@@ -321,7 +332,7 @@ def _peak_rss_mb(who: int) -> float:
 
 
 def _report(rec: Recording, o: FusionOptions, roi: Roi, roi_source: str, volume: TsdfVolume,
-            mesh, cloud: np.ndarray, results: list[_PairResult], updated: list[int],
+            mesh, cloud: np.ndarray, results: list[PairDepth], updated: list[int],
             supported: np.ndarray, workers: int) -> dict:
     per_pair = [{"pair": r.pair, "left_view": r.left_view, "right_view": r.right_view,
                  "points": r.raw_point_count, "voxels_updated": int(u),
@@ -342,7 +353,7 @@ def _report(rec: Recording, o: FusionOptions, roi: Roi, roi_source: str, volume:
 
 
 def _score(truth: SceneTruth, pairs, roi: Roi, mesh, cloud: np.ndarray,
-           results: list[_PairResult], o: FusionOptions) -> dict:
+           results: list[PairDepth], o: FusionOptions) -> dict:
     """The accuracy block: the mesh against truth, plus the fused cloud and the raw pairs."""
     reference = reference_surface(pairs, roi)
     score = score_mesh(mesh, truth, reference).as_dict()

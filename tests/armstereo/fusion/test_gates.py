@@ -7,7 +7,8 @@
   <= 1.0 mm, completeness within 5 mm >= 95 %, and the model more accurate than the raw pair
   clouds.
 
-Slow (about 80 s on a quiet 2-core machine: 24 renders at 640x480, 12 stereo pairs, scoring).
+Slow: about 50 s of CPU time (2.7 min wall on the loaded 2-core machine): two 12-view scans
+(24 renders at 640x480 each), 12 stereo pairs, two fusions with scoring.
 """
 
 import pytest
