@@ -155,3 +155,17 @@ def view_support(points: np.ndarray, frames: Sequence[DepthFrame], tolerance: fl
     colors[have] = np.clip(np.rint(color_sum[have] / color_n[have, None]), 0, 255)
     return Support(views, colors, per_frame)
 
+
+
+def fused_cloud(mesh: Mesh, frames: Sequence[DepthFrame], tolerance: float,
+                min_views: int = 2) -> tuple[Mesh, np.ndarray, np.ndarray, Support]:
+    """Colour the mesh from the frames that see each vertex, and keep as the fused cloud the
+    vertices at least ``min_views`` frames (pairs) see: ``(coloured mesh, points (K, 3),
+    colours (K, 3) BGR, support)``. A surface only one pair saw stays in the mesh (it is all
+    we know there) but is not confirmed, so it is left out of the cloud."""
+    if min_views < 1:
+        raise ConfigError(f"min_views must be >= 1, got {min_views}")
+    support = view_support(mesh.vertices, frames, tolerance)
+    keep = support.views >= min_views
+    coloured = Mesh(mesh.vertices, mesh.faces, support.colors)
+    return coloured, mesh.vertices[keep], support.colors[keep], support

@@ -51,6 +51,7 @@ COVERAGE_TOLERANCE_M = 0.005
 REFERENCE_STRIDE_PX = 2
 MAX_SCORED_POINTS = 2_000_000  # larger clouds are thinned (evenly, deterministically)
 CANDIDATE_TRIANGLES = 8  # nearest triangles (by centroid) searched for a point's distance
+DEGENERATE_AREA = 1e-12  # |ab x ac|^2 below this share of |ab|^2 |ac|^2: no area, use edges
 
 
 @dataclass(frozen=True)
@@ -243,12 +244,29 @@ def _sq(x, y, z):
     return x * x + y * y + z * z
 
 
+@njit(cache=True, inline="always")
+def _segment_sq(px, py, pz, ax, ay, az, bx, by, bz):
+    """Squared distance from p to the segment a-b (a point when a == b)."""
+    ux, uy, uz = bx - ax, by - ay, bz - az
+    den = _sq(ux, uy, uz)
+    t = 0.0
+    if den > 0.0:
+        t = min(1.0, max(0.0, ((px - ax) * ux + (py - ay) * uy + (pz - az) * uz) / den))
+    return _sq(px - ax - t * ux, py - ay - t * uy, pz - az - t * uz)
+
+
 @njit(cache=True)
 def _point_triangle_sq(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
     """Squared distance from p to the triangle (a, b, c), scalars only (no temporaries):
-    Ericson, Real-Time Collision Detection 5.1.5, closest feature by Voronoi region."""
+    Ericson, Real-Time Collision Detection 5.1.5, closest feature by Voronoi region. A
+    degenerate triangle (no area: repeated or collinear corners) is its three edges."""
     abx, aby, abz = bx - ax, by - ay, bz - az
     acx, acy, acz = cx - ax, cy - ay, cz - az
+    nx, ny, nz = aby * acz - abz * acy, abz * acx - abx * acz, abx * acy - aby * acx
+    if _sq(nx, ny, nz) <= DEGENERATE_AREA * _sq(abx, aby, abz) * _sq(acx, acy, acz):
+        return min(_segment_sq(px, py, pz, ax, ay, az, bx, by, bz),
+                   min(_segment_sq(px, py, pz, bx, by, bz, cx, cy, cz),
+                       _segment_sq(px, py, pz, cx, cy, cz, ax, ay, az)))
     apx, apy, apz = px - ax, py - ay, pz - az
     d1 = abx * apx + aby * apy + abz * apz
     d2 = acx * apx + acy * apy + acz * apz
@@ -277,8 +295,6 @@ def _point_triangle_sq(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
         s = (d4 - d3) / ((d4 - d3) + (d5 - d6))  # edge bc
         return _sq(bpx - s * (cx - bx), bpy - s * (cy - by), bpz - s * (cz - bz))
     den = va + vb + vc
-    if den == 0.0:  # degenerate triangle whose feature tests all failed: nearest corner
-        return min(_sq(apx, apy, apz), min(_sq(bpx, bpy, bpz), _sq(cpx, cpy, cpz)))
     v = vb / den  # the foot falls inside the face
     w = vc / den
     return _sq(apx - v * abx - w * acx, apy - v * aby - w * acy, apz - v * abz - w * acz)

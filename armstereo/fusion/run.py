@@ -34,7 +34,7 @@ from armstereo.errors import ConfigError, RecordingError
 from armstereo.evaluation.scene_truth import SceneTruth
 from armstereo.fusion.foxglove import ViewPose, write_fusion_mcap
 from armstereo.fusion.frames import frame_from_reconstruction, frame_from_truth
-from armstereo.fusion.mesh import extract_mesh, view_support
+from armstereo.fusion.mesh import extract_mesh, fused_cloud
 from armstereo.fusion.mesh_ply import write_mesh_ply
 from armstereo.fusion.metrics import point_accuracy, reference_surface, score_mesh
 from armstereo.fusion.roi import auto_roi, check_roi_seen, frame_points
@@ -151,11 +151,8 @@ def fuse_recording(recording: str | Path, out_dir: str | Path,
         raise ConfigError(f"no surface inside the region of interest {roi}: the views see it "
                           "but none of their depth lies in it; widen --roi")
     with _timed(timings, "support"):
-        support = view_support(mesh.vertices, frames,
-                               SUPPORT_TOLERANCE_TRUNC * options.trunc_m)
-        mesh = type(mesh)(mesh.vertices, mesh.faces, support.colors)
-        keep = support.views >= options.min_views
-        cloud, cloud_colors = mesh.vertices[keep], support.colors[keep]
+        mesh, cloud, cloud_colors, support = fused_cloud(
+            mesh, frames, SUPPORT_TOLERANCE_TRUNC * options.trunc_m, options.min_views)
     paths = {k: out / name for k, name in OUTPUT_NAMES.items()}
     report = _report(rec, options, roi, roi_source, volume, mesh, cloud, results, updated,
                      support.per_frame, workers)

@@ -137,3 +137,25 @@ def test_read_mesh_ply_refuses_other_layouts(tmp_path):
 def test_mesh_rejects_bad_indices():
     with pytest.raises(ConfigError, match="exist"):
         Mesh(np.zeros((3, 3)), np.array([[0, 1, 3]]), np.zeros((3, 3), np.uint8))
+
+
+def test_fused_cloud_keeps_what_two_pairs_confirm():
+    from armstereo.fusion.mesh import fused_cloud
+    from tests.armstereo.fusion.synthetic import ROI, ring_frames
+
+    frames, _ = ring_frames(2)  # two views from opposite sides: object sides seen once
+    volume = TsdfVolume(ROI, 0.004, 0.016)
+    for f in frames:
+        volume.integrate(f)
+    mesh = extract_mesh(volume)
+    coloured, points, colors, support = fused_cloud(mesh, frames, tolerance=0.008)
+    assert len(points) == np.count_nonzero(support.views >= 2) == len(colors)
+    single = np.count_nonzero(support.views == 1)
+    assert 0.05 * len(mesh.vertices) < single < 0.6 * len(mesh.vertices)
+    for f in frames:  # every kept point lies on both depth maps
+        u, v, z = f.project(points)
+        d = f.depth[np.rint(v).astype(int), np.rint(u).astype(int)]
+        assert np.all(np.abs(d - z) <= 0.008)
+    assert (coloured.colors != 128).all(axis=1).mean() > 0.9
+    with pytest.raises(ConfigError):
+        fused_cloud(mesh, frames, 0.008, min_views=0)

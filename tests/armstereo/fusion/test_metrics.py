@@ -41,8 +41,18 @@ def test_point_triangle_distance_on_features():
     assert point_triangle_distance(np.array([0.2, 0.2, 0.5]), a, b, c) == pytest.approx(0.5)
     assert point_triangle_distance(np.array([-1.0, -1, 0]), a, b, c) == pytest.approx(2**0.5)
     assert point_triangle_distance(np.array([1.0, 1, 0]), a, b, c) == pytest.approx(0.5**0.5)
-    # a degenerate triangle (all on a line) still gives the distance to its segment
-    assert point_triangle_distance(np.array([0.5, 1, 0]), a, b, b) == pytest.approx(1.0)
+    # degenerate triangles (repeated corners, as marching cubes can leave in float32) still
+    # give the distance to what is left of them
+    p = np.array([0.5, 1, 0])
+    for tri in ((a, b, b), (a, a, b), (b, a, a), (a, b, a), (a, a, a)):
+        expected = 1.0 if not np.array_equal(tri[0], tri[1]) or not np.array_equal(
+            tri[1], tri[2]) else np.hypot(0.5, 1.0)
+        assert point_triangle_distance(p, *tri) == pytest.approx(expected)
+    rng = np.random.default_rng(5)
+    for _ in range(200):  # random points against an edge-collapsed triangle: no error, exact
+        q = rng.normal(size=3)
+        assert point_triangle_distance(q, a, a, b) == pytest.approx(_brute_force(q, a, a, b),
+                                                                    abs=0.01)
 
 
 def _grid_mesh(z: float, half: float = 0.1, step: float = 0.002) -> Mesh:
