@@ -13,25 +13,31 @@ For each: ``scan`` (plan + capture, simulated arm time is not waited for), ``fus
 raw pair clouds and, on the same recording, of the views' exact depth fused (the plumbing
 check). ``--variants`` also fuses the same reconstructed depth with nearest-pixel lookup and
 with truncation 3 and 6 voxels; ``--workers-ab`` times reconstruction of the 12 pairs in one
-process against two worker processes, alternating, twice each. Writes Markdown (``--out``).
+process against two worker processes, alternating, twice each; ``--open3d PYTHON`` fuses the
+same depth frames with Open3D's VoxelBlockGrid in that interpreter (bench/open3d_peer.py) and
+scores its mesh the same way. Writes Markdown (``--out``).
 
     .venv/bin/python bench/fusion.py [--held-out] [--variants] [--workers-ab]
-                                     [--out bench/results/fusion.md]
+                                     [--open3d /tmp/o3d/bin/python] [--out FILE.md]
 """
 
 from __future__ import annotations
 
 import argparse
 import statistics
+import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
 from armstereo.capture.backends import mock_start_configuration
 from armstereo.capture.scan_plan import plan_scan
 from armstereo.evaluation.scene_truth import SceneTruth
-from armstereo.fusion.mesh import extract_mesh
+from armstereo.fusion.frames import frame_from_truth
+from armstereo.fusion.mesh import Mesh, extract_mesh
 from armstereo.fusion.metrics import reference_surface, score_mesh
 from armstereo.fusion.mock_scan import record_mock_scan
 from armstereo.fusion.run import FusionOptions, fuse_recording, reconstruct_pairs
@@ -134,6 +140,72 @@ def variants(path: Path, report: dict, lines: list[str]) -> None:
     lines.append("")
 
 
+def open3d_peer(python: str, path: Path, report: dict, tmp: Path, lines: list[str]) -> None:
+    """Our fusion and Open3D's on the same frames (stereo and exact), same scoring."""
+    rec = Recording.open(path)
+    truth = SceneTruth.from_json(rec.metadata["scene_truth"])
+    roi = Roi.parse(",".join(str(v) for v in report["roi_m"]))
+    reference = reference_surface(rec.pairs, roi)
+    trunc = 4 * VOXEL_M
+    stereo = [r.frame for r in reconstruct_pairs(path, FusionOptions(workers=1))[0]]
+    exact = [frame_from_truth(p) for p in rec.pairs]
+    lines += ["| depth | fusion | accuracy mm | completeness mm | comp. within 2 mm | "
+              "integrate s (12 frames) | extract s |", "|---|---|---|---|---|---|---|"]
+    for label, frames in (("stereo", stereo), ("exact", exact)):
+        volume = TsdfVolume(roi, VOXEL_M, trunc)
+        t0 = time.perf_counter()
+        for f in frames:
+            volume.integrate(f)
+        t_int = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        mesh = extract_mesh(volume)
+        t_ext = time.perf_counter() - t0
+        _row(lines, label, "armstereo (numba + scikit-image)", score_mesh(mesh, truth, reference),
+             t_int, t_ext)
+        npz = tmp / f"frames_{label}.npz"
+        _save_frames(npz, frames, roi, trunc)
+        flags = [[], ["--weight-threshold", "1.0"]]
+        if label == "exact":
+            flags.append(["--no-half-pixel"])
+        for flag in flags:
+            out = tmp / f"o3d_{label}.npz"
+            subprocess.run([python, str(Path(__file__).with_name("open3d_peer.py")), str(npz),
+                            str(out), *flag], check=True)
+            got = np.load(out)
+            o3d_mesh = Mesh(got["vertices"], got["faces"],
+                            np.zeros(got["vertices"].shape, np.uint8))
+            name = "Open3D 0.20 VoxelBlockGrid, " + {
+                0: "cx/cy + 0.5, weight > 0.5", 2: "cx/cy + 0.5, weight > 1.0",
+                1: "cx/cy as given, weight > 0.5"}[len(flag) if flag != ["--no-half-pixel"]
+                                                   else 1]
+            _row(lines, label, name, score_mesh(o3d_mesh, truth, reference),
+                 float(got["integrate_s"]), float(got["extract_s"]))
+    lines.append("")
+
+
+def _row(lines, label, name, s, t_int, t_ext) -> None:
+    lines.append(f"| {label} | {name} | {s.accuracy_mean_mm:.3f} | {s.completeness_mean_mm:.3f} "
+                 f"| {s.completeness_within_2mm * 100:.1f} % | {t_int:.2f} | {t_ext:.2f} |")
+
+
+def _save_frames(npz: Path, frames, roi: Roi, trunc: float) -> None:
+    """Frames for the peer, depth limited to the ROI (grown by the truncation) so that Open3D,
+    which allocates blocks wherever depth lands, works on the same region."""
+    lo, hi = np.subtract(roi.lo, trunc), np.add(roi.hi, trunc)
+    data = {"count": len(frames), "voxel": VOXEL_M, "trunc": trunc,
+            "roi": np.array(roi.as_list())}
+    for k, f in enumerate(frames):
+        h, w = f.depth.shape
+        v, u = np.mgrid[0:h, 0:w]
+        z = f.depth.astype(np.float64)
+        cam = np.stack([(u - f.K[0, 2]) / f.K[0, 0] * z, (v - f.K[1, 2]) / f.K[1, 1] * z, z], -1)
+        p = cam @ f.T_base_camera[:3, :3].T + f.T_base_camera[:3, 3]
+        inside = np.all((p >= lo) & (p <= hi), axis=-1)
+        data[f"depth_{k}"] = np.where(inside, f.depth, np.nan).astype(np.float32)
+        data[f"K_{k}"], data[f"T_{k}"] = f.K, f.T_base_camera
+    np.savez(npz, **data)
+
+
 def workers_ab(path: Path, lines: list[str]) -> None:
     times: dict[int, list[float]] = {1: [], 2: []}
     for _ in range(2):
@@ -155,6 +227,8 @@ def main() -> None:
     ap.add_argument("--held-out", action="store_true", help="also run the held-out case")
     ap.add_argument("--variants", action="store_true", help="lookup/truncation variants")
     ap.add_argument("--workers-ab", action="store_true", help="1 process vs 2 workers")
+    ap.add_argument("--open3d", default=None, metavar="PYTHON",
+                    help="an interpreter with open3d: run bench/open3d_peer.py as the peer")
     ap.add_argument("--out", default=None, help="write the Markdown here too")
     args = ap.parse_args()
     lines = ["# Fusion benchmark: 12-view mock scan, 2 mm voxels", "",
@@ -169,6 +243,9 @@ def main() -> None:
         if args.variants:
             lines += ["### Depth lookup and truncation (tuning scan, same stereo depth)", ""]
             variants(first["path"], first["report"], lines)
+        if args.open3d:
+            lines += ["### Open3D's TSDF on the same frames (tuning scan)", ""]
+            open3d_peer(args.open3d, first["path"], first["report"], tmp, lines)
         if args.workers_ab:
             lines += ["### Worker processes for reconstruction (tuning scan)", ""]
             workers_ab(first["path"], lines)
