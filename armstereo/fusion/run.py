@@ -137,14 +137,14 @@ def fuse_recording(recording: str | Path, out_dir: str | Path,
         roi, roi_source = _region(options, results)
         check_roi_seen(roi, frames)
     volume = TsdfVolume(roi, options.voxel, options.trunc_m, interpolation=options.interpolation)
-    updated = []
+    updated, integrate_s = [], []
     with _timed(timings, "integrate"):
         for k, r in enumerate(results):
             t0 = time.perf_counter()
             updated.append(volume.integrate(r.frame))
+            integrate_s.append(time.perf_counter() - t0)
             _say(progress, FusionProgress("integrate", r.pair, k + 1, len(results),
-                                          time.perf_counter() - t0,
-                                          f"{updated[-1]} voxels updated"))
+                                          integrate_s[-1], f"{updated[-1]} voxels updated"))
     with _timed(timings, "extract"):
         mesh = extract_mesh(volume)
     if len(mesh) == 0:
@@ -154,8 +154,8 @@ def fuse_recording(recording: str | Path, out_dir: str | Path,
         mesh, cloud, cloud_colors, support = fused_cloud(
             mesh, frames, SUPPORT_TOLERANCE_TRUNC * options.trunc_m, options.min_views)
     paths = {k: out / name for k, name in OUTPUT_NAMES.items()}
-    report = _report(rec, options, roi, roi_source, volume, mesh, cloud, results, updated,
-                     support.per_frame, workers)
+    report = _report(rec, options, roi, roi_source, volume, mesh, cloud, results,
+                     zip(updated, integrate_s, support.per_frame, strict=True), workers)
     with _timed(timings, "write"):
         comment = f"armstereo fused from {len(results)} pairs, frame base, metres"
         write_mesh_ply(paths["mesh"], mesh, comment=comment)
@@ -329,12 +329,15 @@ def _peak_rss_mb(who: int) -> float:
 
 
 def _report(rec: Recording, o: FusionOptions, roi: Roi, roi_source: str, volume: TsdfVolume,
-            mesh, cloud: np.ndarray, results: list[PairDepth], updated: list[int],
-            supported: np.ndarray, workers: int) -> dict:
+            mesh, cloud: np.ndarray, results: list[PairDepth], contributions, workers: int
+            ) -> dict:
+    """The report without timings, accuracy and outputs; ``contributions`` holds per pair
+    (voxels updated, integration seconds, mesh vertices the pair sees)."""
     per_pair = [{"pair": r.pair, "left_view": r.left_view, "right_view": r.right_view,
                  "points": r.raw_point_count, "voxels_updated": int(u),
-                 "mesh_vertices_seen": int(s), "reconstruct_s": round(r.seconds, 3)}
-                for r, u, s in zip(results, updated, supported, strict=True)]
+                 "mesh_vertices_seen": int(s), "reconstruct_s": round(r.seconds, 3),
+                 "integrate_s": round(t, 3)}
+                for r, (u, t, s) in zip(results, contributions, strict=True)]
     return {
         "views": len(results), "voxel_m": o.voxel, "trunc_m": o.trunc_m,
         "roi_m": roi.as_list(), "roi_source": roi_source, "depth_source": o.depth_source,
