@@ -143,3 +143,15 @@ def test_worker_processes_give_the_same_model(scan, fused, tmp_path):
     assert report["workers"] == 2
     assert report["mesh"] == fused[1]["mesh"]
     assert report["accuracy"]["accuracy_mean_mm"] == fused[1]["accuracy"]["accuracy_mean_mm"]
+
+
+def test_a_scan_cut_short_fuses_its_complete_pairs(scan, tmp_path):
+    # A capture killed mid-scan leaves a file without an index, ending inside a view; the
+    # complete pairs before the cut still fuse.
+    data = scan.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: int(len(data) * 0.7)])
+    assert 1 <= len(Recording.open(cut)) < 4
+    report = fuse_recording(cut, tmp_path / "out", FusionOptions(voxel=0.006, roi=ROI,
+                                                                 workers=1))
+    assert 1 <= report["views"] < 4 and report["mesh"]["faces"] > 0
