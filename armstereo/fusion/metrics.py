@@ -56,18 +56,33 @@ DEGENERATE_AREA = 1e-12  # |ab x ac|^2 below this share of |ab|^2 |ac|^2: no are
 
 @dataclass(frozen=True)
 class Reference:
-    """Points (N, 3, base) of the true surface: ``stereo`` seen by both views of a pair,
-    ``visible`` seen by any recorded view."""
+    """Points (N, 3, base) of the visible true surface, one per REFERENCE_SPACING_M cube, and
+    ``stereo`` (N,): True where the cell holds a point both views of a pair see (the cell is
+    then represented by such a point)."""
 
+    points: np.ndarray
     stereo: np.ndarray
-    visible: np.ndarray
+
+    @classmethod
+    def from_sets(cls, stereo_points: np.ndarray, other_points: np.ndarray,
+                  spacing: float = REFERENCE_SPACING_M) -> Reference:
+        """Thin stereo-visible and other visible points together (stereo first, so a cell
+        with any stereo-visible point is represented by one)."""
+        stereo_points = np.asarray(stereo_points, dtype=float).reshape(-1, 3)
+        pts = np.concatenate([stereo_points, np.asarray(other_points, float).reshape(-1, 3)])
+        first = thin_index(pts, spacing)
+        return cls(pts[first], first < len(stereo_points))
+
+    @property
+    def stereo_points(self) -> np.ndarray:
+        return self.points[self.stereo]
 
 
 def reference_surface(pairs: Sequence[Pair], roi: Roi, spacing: float = REFERENCE_SPACING_M,
                       stride: int = REFERENCE_STRIDE_PX) -> Reference:
     """The visible true surface inside ``roi`` from the pairs' ground-truth depth maps (every
     ``stride``-th pixel; a pixel spans about 0.8 mm at 0.5 m, so 2 still fills 1 mm cells)."""
-    stereo, visible = [], []
+    stereo, other = [], []
     for pair in pairs:
         views = (pair.left, pair.right)
         for a, b in (views, views[::-1]):
@@ -75,22 +90,29 @@ def reference_surface(pairs: Sequence[Pair], roi: Roi, spacing: float = REFERENC
                 raise ConfigError(f"pair {pair.index} has no ground-truth depth to score against")
             pts = view_surface_points(a, stride)
             pts = pts[roi.contains(pts)]
-            visible.append(thin(pts, spacing))
-            stereo.append(thin(pts[seen_by(b, pts, OCCLUSION_TOLERANCE)], spacing))
-    return Reference(thin(np.concatenate(stereo), spacing), thin(np.concatenate(visible),
-                                                                   spacing))
+            seen = seen_by(b, pts, OCCLUSION_TOLERANCE)
+            stereo.append(pts[seen])
+            other.append(pts[~seen])
+    return Reference.from_sets(np.concatenate(stereo), np.concatenate(other), spacing)
 
 
-def thin(points: np.ndarray, spacing: float) -> np.ndarray:
-    """One point (the first) per ``spacing`` cube: an even density whatever the overlap."""
+def thin_index(points: np.ndarray, spacing: float) -> np.ndarray:
+    """Sorted indices of the first point in each ``spacing`` cube (an even density whatever
+    the overlap of the views)."""
     if len(points) == 0:
-        return points.reshape(0, 3)
+        return np.zeros(0, dtype=np.int64)
     cells = np.floor(points / spacing).astype(np.int64)
     cells -= cells.min(axis=0)
     span = cells.max(axis=0) + 1
     key = (cells[:, 0] * span[1] + cells[:, 1]) * span[2] + cells[:, 2]
     _, first = np.unique(key, return_index=True)
-    return points[np.sort(first)]
+    return np.sort(first)
+
+
+def thin(points: np.ndarray, spacing: float) -> np.ndarray:
+    """One point (the first) per ``spacing`` cube."""
+    return np.asarray(points).reshape(-1, 3)[thin_index(np.asarray(points).reshape(-1, 3),
+                                                         spacing)]
 
 
 def _spread(points: np.ndarray, limit: int) -> np.ndarray:
@@ -182,15 +204,15 @@ class SurfaceScore:
 def score_mesh(mesh: Mesh, truth: SceneTruth, reference: Reference) -> SurfaceScore:
     """Score ``mesh`` against the exact surface (accuracy, area-weighted at triangle
     centroids) and the visible reference surface (completeness, coverage)."""
-    if len(reference.stereo) == 0:
+    if not reference.stereo.any():
         raise ConfigError("the region of interest holds no visible true surface to score "
                           "completeness against")
     if len(mesh) == 0:
         raise ConfigError("the mesh is empty: nothing to score")
     tri = mesh.vertices[mesh.faces].astype(np.float64)  # (M, 3 corners, 3)
     acc = point_accuracy(tri.mean(axis=1), truth, weights=mesh.triangle_areas())
-    d_comp = mesh_distance(tri, reference.stereo)
-    d_vis = mesh_distance(tri, reference.visible)
+    d_vis = mesh_distance(tri, reference.points)
+    d_comp = d_vis[reference.stereo]
     comp = {f"completeness_within_{t}mm": float(np.mean(d_comp <= t / 1000))
             for t in TOLERANCES_MM}
     comp_mean = _mean_mm(d_comp[d_comp <= OUTLIER_DISTANCE_M])
@@ -201,10 +223,9 @@ def score_mesh(mesh: Mesh, truth: SceneTruth, reference: Reference) -> SurfaceSc
         within_1mm=acc.within_1mm, within_2mm=acc.within_2mm, within_5mm=acc.within_5mm,
         completeness_mean_mm=comp_mean, **comp,
         chamfer_mm=(acc.accuracy_mean_mm + comp_mean) / 2, **f1,
-        visible_surface_covered=float(np.mean(d_vis <= COVERAGE_TOLERANCE_M))
-        if d_vis.size else 0.0,
+        visible_surface_covered=float(np.mean(d_vis <= COVERAGE_TOLERANCE_M)),
         outliers=acc.outliers, holes=float(np.mean(d_comp > OUTLIER_DISTANCE_M)),
-        points=acc.points, reference_points=len(reference.stereo))
+        points=acc.points, reference_points=int(reference.stereo.sum()))
 
 
 def mesh_distance(triangles: np.ndarray, points: np.ndarray,
