@@ -137,14 +137,8 @@ def fuse_recording(recording: str | Path, out_dir: str | Path,
         roi, roi_source = _region(options, results)
         check_roi_seen(roi, frames)
     volume = TsdfVolume(roi, options.voxel, options.trunc_m, interpolation=options.interpolation)
-    updated, integrate_s = [], []
     with _timed(timings, "integrate"):
-        for k, r in enumerate(results):
-            t0 = time.perf_counter()
-            updated.append(volume.integrate(r.frame))
-            integrate_s.append(time.perf_counter() - t0)
-            _say(progress, FusionProgress("integrate", r.pair, k + 1, len(results),
-                                          integrate_s[-1], f"{updated[-1]} voxels updated"))
+        updated, integrate_s = _integrate(volume, results, progress)
     with _timed(timings, "extract"):
         mesh = extract_mesh(volume)
     if len(mesh) == 0:
@@ -157,14 +151,9 @@ def fuse_recording(recording: str | Path, out_dir: str | Path,
     report = _report(rec, options, roi, roi_source, volume, mesh, cloud, results,
                      zip(updated, integrate_s, support.per_frame, strict=True), workers)
     with _timed(timings, "write"):
-        comment = f"armstereo fused from {len(results)} pairs, frame base, metres"
-        write_mesh_ply(paths["mesh"], mesh, comment=comment)
-        write_ply(paths["cloud"], cloud, cloud_colors, comment=comment)
-        views = [ViewPose(r.pair, r.frame.T_base_camera, r.frame.K, r.frame.depth.shape[::-1],
-                          r.timestamp_ns) for r in results]
-        write_fusion_mcap(paths["mcap"], mesh, cloud, cloud_colors, views,
-                          {"source": str(recording), "pairs": str(len(results)),
-                           "voxel_m": repr(options.voxel), "roi_m": str(roi)})
+        _write(paths, mesh, cloud, cloud_colors, results,
+               {"source": str(recording), "pairs": str(len(results)),
+                "voxel_m": repr(options.voxel), "roi_m": str(roi)})
     if truth is not None and options.score:
         with _timed(timings, "score"):
             report["accuracy"] = _score(truth, pairs, roi, mesh, cloud, results, options)
@@ -175,6 +164,30 @@ def fuse_recording(recording: str | Path, out_dir: str | Path,
     report["outputs"] = {k: str(p) for k, p in paths.items()}
     paths["report"].write_text(json.dumps(report, indent=2) + "\n")
     return report
+
+
+def _integrate(volume: TsdfVolume, results: list[PairDepth], progress
+               ) -> tuple[list[int], list[float]]:
+    """Fuse every pair's depth; returns voxels updated and seconds, per pair."""
+    updated, seconds = [], []
+    for k, r in enumerate(results):
+        t0 = time.perf_counter()
+        updated.append(volume.integrate(r.frame))
+        seconds.append(time.perf_counter() - t0)
+        _say(progress, FusionProgress("integrate", r.pair, k + 1, len(results), seconds[-1],
+                                      f"{updated[-1]} voxels updated"))
+    return updated, seconds
+
+
+def _write(paths: dict[str, Path], mesh, cloud: np.ndarray, cloud_colors: np.ndarray,
+           results: list[PairDepth], metadata: dict[str, str]) -> None:
+    """mesh.ply, fused.ply and fusion.mcap."""
+    comment = f"armstereo fused from {len(results)} pairs, frame base, metres"
+    write_mesh_ply(paths["mesh"], mesh, comment=comment)
+    write_ply(paths["cloud"], cloud, cloud_colors, comment=comment)
+    views = [ViewPose(r.pair, r.frame.T_base_camera, r.frame.K, r.frame.depth.shape[::-1],
+                      r.timestamp_ns) for r in results]
+    write_fusion_mcap(paths["mcap"], mesh, cloud, cloud_colors, views, metadata)
 
 
 def _check_options(o: FusionOptions) -> None:
