@@ -5,13 +5,13 @@ Topics (all in frame ``base``; protobuf, Foxglove schemas):
 - ``/fusion/mesh`` (``foxglove.SceneUpdate``): entity ``mesh``, one ``TriangleListPrimitive``
   with per-vertex colours and an index list;
 - ``/fusion/points`` (``foxglove.PointCloud``): the fused cloud, float32 xyz + rgba;
-- ``/fusion/views`` (``foxglove.SceneUpdate``): per pair a camera frustum (entity ``pair_K``,
-  a line list at the pair's left camera pose, labelled) and entity ``tour``, a line strip
-  through the camera centres in shooting order;
-- ``/tf`` (``foxglove.FrameTransforms``): ``base -> camera_optical`` at each pair's timestamp
+- ``/fusion/views`` (``foxglove.SceneUpdate``): per recorded view a camera frustum (entity
+  ``view_K``, a line list at the view's camera pose, labelled with its view and pair) and
+  entity ``tour``, a line strip through the camera centres in shooting order;
+- ``/tf`` (``foxglove.FrameTransforms``): ``base -> camera_optical`` at each view's timestamp
   (the camera moving along its tour on playback).
 
-The scene entities are stamped at the first pair's time with no lifetime, so they stay visible
+The scene entities are stamped at the first view's time with no lifetime, so they stay visible
 during the whole playback. The MCAP metadata record ``armstereo`` holds the fusion report's
 scalar keys. The triangle list is encoded straight into protobuf wire format with numpy (a
 mesh has ~10^5 vertices; building one protobuf object per vertex takes seconds).
@@ -73,8 +73,10 @@ _WIRE_LEN, _WIRE_FIXED64 = 2, 1
 
 @dataclass(frozen=True)
 class ViewPose:
-    """A pair's left camera for drawing: pose (base), intrinsics size/K, time (ns)."""
+    """A recorded view for drawing: its number, its pair, camera pose (base), K and image
+    size (width, height), time (ns)."""
 
+    view: int
     pair: int
     T_base_camera: np.ndarray
     K: np.ndarray
@@ -165,9 +167,10 @@ def _views_update(views: Sequence[ViewPose], t_ns: int) -> SceneUpdate:
     for view in views:
         label = TextPrimitive(pose=_pose(view.T_base_camera), billboard=True,
                               font_size=LABEL_SIZE_PX, scale_invariant=True,
-                              color=Color(r=1.0, g=1.0, b=1.0, a=1.0), text=f"pair {view.pair}")
+                              color=Color(r=1.0, g=1.0, b=1.0, a=1.0),
+                              text=f"view {view.view} (pair {view.pair})")
         entities.append(SceneEntity(timestamp=_stamp(t_ns), frame_id=FRAME_BASE,
-                                    id=f"pair_{view.pair}", lines=[_frustum(view)],
+                                    id=f"view_{view.view}", lines=[_frustum(view)],
                                     texts=[label]))
     r, g, b, a = TOUR_RGBA
     tour = LinePrimitive(type=LinePrimitive.LINE_STRIP, pose=_identity_pose(),

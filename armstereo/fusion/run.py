@@ -108,6 +108,7 @@ class PairDepth:
     raw_points: np.ndarray
     raw_point_count: int
     seconds: float
+    views: tuple[ViewPose, ...] = ()
     timings_s: dict[str, float] = field(default_factory=dict)
 
 
@@ -185,8 +186,7 @@ def _write(paths: dict[str, Path], mesh, cloud: np.ndarray, cloud_colors: np.nda
     comment = f"armstereo fused from {len(results)} pairs, frame base, metres"
     write_mesh_ply(paths["mesh"], mesh, comment=comment)
     write_ply(paths["cloud"], cloud, cloud_colors, comment=comment)
-    views = [ViewPose(r.pair, r.frame.T_base_camera, r.frame.K, r.frame.depth.shape[::-1],
-                      r.timestamp_ns) for r in results]
+    views = [v for r in results for v in r.views]
     write_fusion_mcap(paths["mcap"], mesh, cloud, cloud_colors, views, metadata)
 
 
@@ -323,9 +323,11 @@ def _pair_job(rec: Recording, k: int, o: FusionOptions, threads: int | None = No
     rng = np.random.default_rng(o.seed + k)
     keep = (rng.choice(len(pts), RAW_POINTS_PER_PAIR, replace=False)
             if len(pts) > RAW_POINTS_PER_PAIR else np.arange(len(pts)))
+    views = tuple(ViewPose(v.index, pair.index, v.T_base_camera, v.intrinsics.K,
+                           v.intrinsics.size, int(v.timestamp_ns)) for v in (pair.left, pair.right))
     return PairDepth(pair.index, left.index, right.index, int(left.timestamp_ns), frame,
-                       np.asarray(pts, dtype=np.float32)[np.sort(keep)], len(pts),
-                       time.perf_counter() - t0, timings)
+                     np.asarray(pts, dtype=np.float32)[np.sort(keep)], len(pts),
+                     time.perf_counter() - t0, views, timings)
 
 
 # ---------------------------------------------------------------------------- roi, report

@@ -48,7 +48,7 @@ def test_fusion_mcap_contents(tmp_path):
     T = np.eye(4)
     T[:3, 3] = (0.1, 0.2, 0.5)
     K = np.array([[300.0, 0, 159.5], [0, 300.0, 119.5], [0, 0, 1]])
-    views = [ViewPose(1, T, K, (320, 240), 2_000), ViewPose(0, T, K, (320, 240), 1_000)]
+    views = [ViewPose(1, 0, T, K, (320, 240), 2_000), ViewPose(0, 0, T, K, (320, 240), 1_000)]
     pts = mesh.vertices[:10]
     path = write_fusion_mcap(tmp_path / "f.mcap", mesh, pts, mesh.colors[:10], views,
                              {"voxel_m": "0.002"})
@@ -67,7 +67,8 @@ def test_fusion_mcap_contents(tmp_path):
     xyz = np.frombuffer(cloud.data, dtype=np.float32).reshape(-1, 4)[:, :3]
     np.testing.assert_array_equal(xyz, pts)
     views_update = SceneUpdate.FromString(got[TOPIC_VIEWS][0][1])
-    assert [e.id for e in views_update.entities] == ["pair_0", "pair_1", "tour"]
+    assert [e.id for e in views_update.entities] == ["view_0", "view_1", "tour"]
+    assert views_update.entities[0].texts[0].text == "view 0 (pair 0)"
     assert [t for t, _ in got[TOPIC_TF]] == [1_000, 2_000]  # the tour in time order
     tf = FrameTransforms.FromString(got[TOPIC_TF][0][1]).transforms[0]
     assert (tf.parent_frame_id, tf.child_frame_id) == ("base", "camera_optical")

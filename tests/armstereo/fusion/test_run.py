@@ -94,7 +94,7 @@ def test_mcap_shows_mesh_cloud_and_tour(fused):
         meta = {m.name: m.metadata for m in reader.iter_metadata()}
     assert topics == {TOPIC_MESH: "foxglove.SceneUpdate", TOPIC_POINTS: "foxglove.PointCloud",
                       TOPIC_VIEWS: "foxglove.SceneUpdate", TOPIC_TF: "foxglove.FrameTransforms"}
-    assert counts[TOPIC_TF] == report["views"]
+    assert counts[TOPIC_TF] == 2 * report["views"]  # both views of every pair
     assert meta["armstereo"]["kind"] == "fusion"
 
 
