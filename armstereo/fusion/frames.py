@@ -19,7 +19,7 @@ import numpy as np
 from armstereo.camera_model import Intrinsics
 from armstereo.errors import RecordingError
 from armstereo.evaluation.depth import visible_mask
-from armstereo.fusion.tsdf import DepthFrame
+from armstereo.fusion.tsdf import DepthFrame, rotate
 from armstereo.recording import Pair, View
 
 UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 30, 1e-10)
@@ -85,16 +85,14 @@ def view_surface_points(view: View, stride: int = 1) -> np.ndarray:
                        / intr.fx, (pix[:, 1] - intr.cy) / intr.fy], axis=1)
     cam = np.column_stack([xy * z[:, None], z])
     T = view.T_base_camera
-    # einsum, not matmul: an (N, 3) x (3, 3) product gains nothing from BLAS threads, which
-    # measured 20x slower than this on a busy 2-core machine
-    return np.einsum("ij,nj->ni", T[:3, :3], cam) + T[:3, 3]
+    return rotate(T[:3, :3], cam) + T[:3, 3]
 
 
 def seen_by(view: View, points: np.ndarray, tolerance: float) -> np.ndarray:
     """Boolean (N,): base-frame points that ``view`` sees, i.e. its ground-truth depth at their
     (rounded) pixel agrees with their own depth within ``tolerance`` x depth (not hidden)."""
     T = view.T_base_camera
-    cam = np.einsum("ji,nj->ni", T[:3, :3], np.asarray(points, dtype=np.float64) - T[:3, 3])
+    cam = rotate(T[:3, :3].T, np.asarray(points, dtype=np.float64) - T[:3, 3])
     z = cam[:, 2]
     intr = view.intrinsics
     front = z > 0

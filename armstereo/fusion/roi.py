@@ -15,8 +15,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from armstereo.errors import ConfigError
-from armstereo.fusion.tsdf import DepthFrame, Roi
-from armstereo.transforms import transform_points
+from armstereo.fusion.tsdf import DepthFrame, Roi, rotate
 
 AGREEMENT_SHARE = 0.5  # a point counts when this share of the pairs frame it
 PERCENTILES = (0.5, 99.5)
@@ -32,7 +31,8 @@ def frame_points(frame: DepthFrame, limit: int = POINTS_PER_FRAME) -> np.ndarray
     z = frame.depth[v, u].astype(np.float64)
     K = frame.K
     cam = np.column_stack([(u - K[0, 2]) / K[0, 0] * z, (v - K[1, 2]) / K[1, 1] * z, z])
-    return transform_points(frame.T_base_camera, cam)
+    T = frame.T_base_camera
+    return rotate(T[:3, :3], cam) + T[:3, 3]
 
 
 def in_image(frame: DepthFrame, points: np.ndarray) -> np.ndarray:
