@@ -81,11 +81,13 @@ def _acc(report: dict) -> dict:
 
 def run_case(name: str, case: dict, tmp: Path, lines: list[str]) -> dict:
     path = tmp / f"{name}.mcap"
+    c0 = time.process_time()
     scan_s, pairs = scan(path, case)
     print(f"{name}: scan {scan_s:.1f} s ({pairs} pairs)", file=sys.stderr)
     t0 = time.perf_counter()
     report = fuse_recording(path, tmp / f"{name}_out", FusionOptions(voxel=VOXEL_M))
     fuse_s = time.perf_counter() - t0
+    cpu_s = time.process_time() - c0  # all threads of this process: load-independent
     truth = fuse_recording(path, tmp / f"{name}_truth",
                            FusionOptions(voxel=VOXEL_M, depth_source="truth", workers=1))
     a, t = _acc(report), report["timings_s"]
@@ -96,7 +98,8 @@ def run_case(name: str, case: dict, tmp: Path, lines: list[str]) -> dict:
         f"{case['radius']} m, camera noise {case['noise']:g}, scene seed {case['scene_seed']}",
         "",
         f"- scan (plan + mock capture of {pairs} pairs): **{scan_s:.1f} s**; fuse (reconstruct, "
-        f"fuse, write, score): **{fuse_s:.1f} s**; in all **{scan_s + fuse_s:.1f} s**",
+        f"fuse, write, score): **{fuse_s:.1f} s**; in all **{scan_s + fuse_s:.1f} s** wall, "
+        f"{cpu_s:.1f} s of CPU (both threads; a quiet 2-core machine takes at most this long)",
         "- fuse stages (s): " + ", ".join(f"{k} {v:.2f}" for k, v in t.items()),
         f"- grid {report['voxel_grid']} = {report['voxels'] / 1e6:.1f} M voxels, TSDF "
         f"{mem['tsdf']:.0f} MB; peak RSS {mem['peak_rss']:.0f} MB (this process, all cases so "
