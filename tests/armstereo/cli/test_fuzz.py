@@ -46,6 +46,7 @@ BASELINES: dict[str, list[str]] = {
                            str(TEMPLE / "templeSR0009.png"), "--out", "{out}"],
     "study": ["study", "epipolar", "--trials", "1", "--points", "20", "--out", "{out}"],
     "analyze": ["analyze", "{cloud}", "--out", "{out}"],
+    "fuse": ["fuse", str(SAMPLE_RECORDING), "--out", "{out}", "--voxel", "0.01"],
 }
 
 
