@@ -23,6 +23,7 @@ from armstereo.devices import (
     MotionLimits,
     trapezoid_duration,
 )
+from armstereo.epipolar.motion import classify_motion
 from armstereo.errors import ConfigError, IKError, JointLimitError, PreflightError
 from armstereo.kinematics import ArmModel
 
@@ -179,6 +180,7 @@ def plan_capture(model: ArmModel, q_start: np.ndarray, settings: CaptureSettings
     checks += _check_path(model, samples, settings, box)
     q_views = _view_joints(q_start, samples, per_pair, n_views)
     checks.append(_check_travel(q_views, settings))
+    checks.append(_check_motion(model, poses))
     cams = [(T @ model.mount.T_flange_camera)[:3, 3] for T in poses]
     duration = _estimate_duration(settings, n_views)
     return CapturePlan(settings, q_start, poses, q_views, cams, checks, duration)
@@ -222,6 +224,19 @@ def _check_direction(s: CaptureSettings) -> Check:
     return Check("baseline direction", ok,
                  f"{angle:.0f} deg from the optical axis (needs >= "
                  f"{MIN_ANGLE_TO_OPTICAL_AXIS_DEG:.0f} deg: rectification needs sideways motion)")
+
+
+def _check_motion(model: ArmModel, poses: list[np.ndarray]) -> Check:
+    """Each planned pair must be real stereo (not a pure rotation); an epipole inside the image
+    (a baseline close to the optical axis) degenerates rectification, so it fails too."""
+    cams = [T @ model.mount.T_flange_camera for T in poses]
+    intr = model.mount.intrinsics
+    for k, (a, b) in enumerate(zip(cams[:-1], cams[1:], strict=True)):
+        report = classify_motion(a, b, intrinsics1=intr, intrinsics2=intr)
+        if report.kind == "rotation_only" or report.epipole_in_image:
+            return Check("stereo motion", False, f"pair {k}: {'; '.join(report.warnings)}")
+    return Check("stereo motion", True, f"every pair is {report.kind} stereo with its epipoles "
+                 "outside the image")
 
 
 def _check_start(model: ArmModel, q: np.ndarray, s: CaptureSettings) -> Check:

@@ -7,6 +7,7 @@ import logging
 from pathlib import Path
 
 from armstereo.cli import args as args_
+from armstereo.epipolar.selfcheck import check_pair
 from armstereo.errors import ArmstereoError, ConfigError, RecordingError, StereoError
 from armstereo.io.files import output_folder
 from armstereo.reconstruct.outputs import write_outputs
@@ -39,6 +40,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="nearest depth of interest in metres (default: from the scene)")
     p.add_argument("--far", type=args_.positive("m"), default=None, metavar="M",
                    help="farthest depth of interest in metres (default: from the scene)")
+    p.add_argument("--no-check", action="store_true",
+                   help="skip the self-check of each pair's recorded poses against its images "
+                   "(armstereo check; a miscalibrated pair is reported as a warning)")
     p.set_defaults(func=run)
 
 
@@ -85,6 +89,8 @@ def run(args: argparse.Namespace) -> int:
     failed: list[ArmstereoError] = []
     with output_folder(out):  # nothing reconstructed: no folder left behind
         for pair in pairs:
+            if not args.no_check:
+                _warn_if_miscalibrated(pair)
             try:
                 recon = reconstruct_pair(pair, method=args.method, max_disparity=max_disparity,
                                          near=args.near, far=args.far)
@@ -103,6 +109,21 @@ def run(args: argparse.Namespace) -> int:
         raise type(failed[0])(f"{len(failed)} of {len(pairs)} pairs skipped (first: "
                               f"{failed[0]}); the others are in {out}")
     return 0
+
+
+def _warn_if_miscalibrated(pair) -> None:
+    """The images are an independent witness of the recorded poses: say when they disagree."""
+    try:
+        result = check_pair(pair)
+    except ArmstereoError as err:  # the check must never stop a reconstruction
+        log.warning("pair %d: self-check not possible: %s", pair.index, err)
+        return
+    if result.verdict == "miscalibrated":
+        fix = ("; " + "; ".join(result.correction.describe())) if result.correction else ""
+        log.warning("pair %d: the images disagree with the recorded poses (%s)%s; the cloud may "
+                    "be bent or misplaced (see armstereo check)", pair.index, result.reason, fix)
+    else:
+        log.info("pair %d: self-check %s (%s)", pair.index, result.verdict, result.reason)
 
 
 def _report(recon, paths: dict[str, Path]) -> None:
