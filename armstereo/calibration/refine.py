@@ -15,7 +15,10 @@ estimation over a few rounds), so an ideal arm ends up trusted and a sloppy one 
 ``pose_error=None`` the deltas are held at zero (the trusting model, kept for comparison).
 
 The Jacobian is analytic: OpenCV's ``projectPoints`` gives d(uv)/d(camera point) and the
-intrinsics' columns; poses are perturbed on the right through :mod:`poses`' chart.
+intrinsics' columns; poses are perturbed on the right through :mod:`poses`' chart. Each view's
+rows touch only X, the board, the intrinsics and its own delta, so the normal equations are
+accumulated view by view (a few hundred unknowns at most) and solved by Levenberg-Marquardt
+with Marquardt's diagonal scaling; no dense Jacobian of the whole problem is ever formed.
 """
 
 from __future__ import annotations
@@ -23,11 +26,9 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from functools import partial
 
 import cv2
 import numpy as np
-from scipy.optimize import least_squares
 
 from armstereo.calibration.board import Detection
 from armstereo.calibration.intrinsics import DISTORTION_MODELS
@@ -39,8 +40,10 @@ DEFAULT_PIXEL_SIGMA = 0.3  # px, starting value; estimated from the residuals
 SIGMA_FLOOR_T = 1e-6  # m: pose-error sigmas never go below these (keeps the prior finite)
 SIGMA_FLOOR_R = 1e-6  # rad
 VARIANCE_ROUNDS = 4  # fits; the sigmas are re-estimated between them
-_FTOL = 1e-12
-MAX_EVALUATIONS = 400
+MAX_ITERATIONS = 100  # Levenberg-Marquardt steps per fit
+COST_TOL = 1e-12  # relative cost decrease below which a fit has converged
+STEP_TOL = 1e-10  # scaled step norm below which a fit has converged
+_LAMBDA_START, _LAMBDA_MIN, _LAMBDA_MAX = 1e-4, 1e-12, 1e10
 
 
 @dataclass(frozen=True)
@@ -128,13 +131,13 @@ class _Problem:
 def refine_hand_eye(detections: Sequence[Detection], T_base_flange: Sequence[np.ndarray],
                     T_flange_camera: np.ndarray, T_base_board: np.ndarray,
                     intrinsics: Intrinsics, *, pose_error: PoseErrorPrior | None = None,
-                    refine_intrinsics: bool = False, distortion_model: str = "k1k2p1p2",
+                    refine_intrinsics: bool = False, distortion_model: str = "k1k2",
                     pixel_sigma: float = DEFAULT_PIXEL_SIGMA,
-                    estimate_sigmas: bool = True) -> RefineResult:
+                    estimate_sigmas: bool = True, cost_tol: float = COST_TOL) -> RefineResult:
     """Refine X = T_flange_camera and T_base_board from initial values (module docstring).
 
     ``pose_error`` None trusts the arm's poses exactly (deltas fixed at 0). With
-    ``estimate_sigmas`` False the given sigmas are used as they are (one round).
+    ``estimate_sigmas`` False the given sigmas are used as they are (one fit).
     """
     with_delta = pose_error is not None
     prior = pose_error or PoseErrorPrior(estimate=False)
@@ -147,15 +150,82 @@ def refine_hand_eye(detections: Sequence[Detection], T_base_flange: Sequence[np.
     rounds = VARIANCE_ROUNDS if estimate_sigmas else 1
     iterations = 0
     for r in range(rounds):
-        # MINPACK's LM: exact Jacobian, small dense problem, no BLAS-threaded SVD per step.
-        sol = least_squares(partial(_residuals, prob), x, jac=partial(_jacobian, prob),
-                            method="lm", x_scale="jac", ftol=_FTOL, xtol=_FTOL, gtol=_FTOL,
-                            max_nfev=MAX_EVALUATIONS)
-        x, iterations = sol.x, iterations + sol.nfev
+        x, n_it = _levenberg_marquardt(prob, x, cost_tol)
+        iterations += n_it
         if r == rounds - 1:
             break
-        prob = _update_sigmas(prob, x, sol.jac, with_delta and prior.estimate)
+        prob = _update_sigmas(prob, x, with_delta and prior.estimate)
     return _result(prob, x, iterations)
+
+
+def _levenberg_marquardt(prob: _Problem, x: np.ndarray, cost_tol: float):
+    """Minimise |residuals|^2 from x with Marquardt's damping lambda * diag(J^T J); returns
+    (x, iterations)."""
+    cost = _cost(prob, x)
+    lam = _LAMBDA_START
+    for it in range(1, MAX_ITERATIONS + 1):
+        normal = _normal_equations(prob, x)
+        while True:
+            step = normal.solve(lam)
+            x_new = x + step
+            cost_new = _cost(prob, x_new)
+            if cost_new <= cost:
+                break
+            lam *= 10.0
+            if lam > _LAMBDA_MAX:
+                return x, it  # no step lowers the cost: x is a minimum to working precision
+        lam = max(lam * 0.1, _LAMBDA_MIN)
+        scale = normal.scale()
+        small_step = float(np.linalg.norm(step * scale)) <= STEP_TOL * (
+            1.0 + float(np.linalg.norm(x * scale)))
+        done = cost - cost_new <= cost_tol * cost or small_step
+        x, cost = x_new, cost_new
+        if done:
+            return x, it
+    return x, MAX_ITERATIONS
+
+
+@dataclass
+class _Normal:
+    """Normal equations J^T J dx = -J^T r split into the shared unknowns (X, board,
+    intrinsics: block A, gradient ga) and the per-view deltas (6x6 blocks D, gradients gd,
+    couplings C (V, p, 6)). Solved by the Schur complement on the deltas, so no system is
+    larger than the shared unknowns (at most 21); small solves also keep multi-threaded BLAS
+    from spinning on a busy machine."""
+
+    A: np.ndarray
+    ga: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    gd: np.ndarray
+
+    def scale(self) -> np.ndarray:
+        diag = np.concatenate([np.diag(self.A), np.einsum("vii->vi", self.D).ravel()])
+        return np.sqrt(np.maximum(diag, 1e-300))
+
+    def solve(self, lam: float) -> np.ndarray:
+        """The step dx of (J^T J + lam diag(J^T J)) dx = -J^T r."""
+        A = self.A + lam * np.diag(np.diag(self.A))
+        if self.D.shape[0] == 0:
+            return np.linalg.solve(A, -self.ga)
+        D = self.D + lam * np.einsum("vij,vi->vij", np.eye(6)[None], np.einsum("vii->vi", self.D))
+        Dinv = np.linalg.inv(D)
+        CDinv = np.einsum("vpi,vij->vpj", self.C, Dinv)
+        S = A - np.einsum("vpi,vqi->pq", CDinv, self.C)
+        rhs = -self.ga + np.einsum("vpi,vi->p", CDinv, self.gd)
+        da = np.linalg.solve(S, rhs)
+        dd = -np.einsum("vij,vj->vi", Dinv, self.gd + np.einsum("vpi,p->vi", self.C, da))
+        return np.concatenate([da, dd.ravel()])
+
+    def covariance(self) -> tuple[np.ndarray, np.ndarray]:
+        """(J^T J)^-1: the shared block (p, p) and the deltas' diagonal 6x6 blocks (V, 6, 6)."""
+        if self.D.shape[0] == 0:
+            return np.linalg.pinv(self.A), self.D.copy()
+        Dinv = np.linalg.inv(self.D)
+        CDinv = np.einsum("vpi,vij->vpj", self.C, Dinv)
+        cov_a = np.linalg.pinv(self.A - np.einsum("vpi,vqi->pq", CDinv, self.C))
+        cov_d = Dinv + np.einsum("vpi,pq,vqj->vij", CDinv, cov_a, CDinv)
+        return cov_a, cov_d
 
 
 def _transforms(prob: _Problem, x: np.ndarray):
@@ -165,67 +235,111 @@ def _transforms(prob: _Problem, x: np.ndarray):
     return X, B, prob.intrinsics(intr), delta
 
 
-def _project(prob: _Problem, det: Detection, X, B, F_true, intr: Intrinsics, jac: bool):
+def _project(det: Detection, X, B, F_true, intr: Intrinsics, jac: bool):
     T_cb = invert(X) @ invert(F_true) @ B
     rvec = cv2.Rodrigues(np.ascontiguousarray(T_cb[:3, :3]))[0]
     uv, J = cv2.projectPoints(det.object_points, rvec, T_cb[:3, 3], intr.K, intr.dist)
     return uv.reshape(-1, 2), (J if jac else None), T_cb
 
 
-def _residuals(prob: _Problem, x: np.ndarray) -> np.ndarray:
+def _pixel_residuals(prob: _Problem, x: np.ndarray) -> list[np.ndarray]:
+    """Per view, (N, 2) pixel errors (projected minus detected), not divided by sigma."""
     X, B, intr, delta = _transforms(prob, x)
-    out = []
-    for i, det in enumerate(prob.detections):
-        uv, _, _ = _project(prob, det, X, B, prob.F[i] @ exp6(delta[i]), intr, False)
-        out.append(((uv - det.image_points) / prob.sigma_px).ravel())
+    return [_project(det, X, B, prob.F[i] @ exp6(delta[i]), intr, False)[0] - det.image_points
+            for i, det in enumerate(prob.detections)]
+
+
+def _prior_scale(prob: _Problem) -> np.ndarray:
+    return np.array([prob.sigma_r] * 3 + [prob.sigma_t] * 3)
+
+
+def _residuals(prob: _Problem, x: np.ndarray) -> np.ndarray:
+    """All whitened residuals: pixels / sigma_px view by view, then delta / prior sigma."""
+    out = [(r / prob.sigma_px).ravel() for r in _pixel_residuals(prob, x)]
     if prob.with_delta:
-        scale = np.array([prob.sigma_r] * 3 + [prob.sigma_t] * 3)
-        out.append((delta / scale).ravel())
+        out.append((prob.split(x)[3] / _prior_scale(prob)).ravel())
     return np.concatenate(out)
 
 
-def _jacobian(prob: _Problem, x: np.ndarray) -> np.ndarray:
-    """Analytic Jacobian of _residuals (dense; a few hundred columns at most)."""
+def _cost(prob: _Problem, x: np.ndarray) -> float:
+    r = _residuals(prob, x)
+    return float(r @ r)
+
+
+def _view_blocks(prob: _Problem, x: np.ndarray):
+    """Per view: (column indices, whitened Jacobian rows (2N, k), whitened residuals (2N,))."""
     xi_X, xi_B, _, delta = prob.split(x)
     X, B, intr, _ = _transforms(prob, x)
     M_X, M_B = chart_jacobian(xi_X), chart_jacobian(xi_B)
-    rows = sum(2 * len(d) for d in prob.detections)
-    J = np.zeros((rows + (6 * prob.n_views if prob.with_delta else 0), prob.n_params))
     R_X = X[:3, :3]
-    r0 = 0
+    shared = list(range(12 + prob.n_intr))
     for i, det in enumerate(prob.detections):
-        F_true = prob.F[i] @ exp6(delta[i])
-        _, Jcv, T_cb = _project(prob, det, X, B, F_true, intr, True)
+        uv, Jcv, T_cb = _project(det, X, B, prob.F[i] @ exp6(delta[i]), intr, True)
         n = len(det)
         d_uv_dP = Jcv[:, 3:6].reshape(n, 2, 3)  # d(uv)/d(camera point) = d/d(tvec)
         P_c = det.object_points @ T_cb[:3, :3].T + T_cb[:3, 3]
         P_f = P_c @ R_X.T + X[:3, 3]  # the corner in the (true) flange frame
-        # X -> X exp(e): P_c -> P_c - w x P_c - v
-        dP_dX = np.concatenate([_skew_rows(P_c), np.broadcast_to(-np.eye(3), (n, 3, 3))], 2)
-        # B -> B exp(e): P_c -> P_c + R_cb (w x P_b + v)
-        R_cb = T_cb[:3, :3]
-        dP_dB = np.concatenate([-R_cb @ _skew_rows(det.object_points),
-                                np.broadcast_to(R_cb, (n, 3, 3))], 2)
-        blk = slice(r0, r0 + 2 * n)
-        J[blk, 0:6] = (d_uv_dP @ dP_dX).reshape(2 * n, 6) @ M_X
-        J[blk, 6:12] = (d_uv_dP @ dP_dB).reshape(2 * n, 6) @ M_B
+        minus_I = np.broadcast_to(-np.eye(3), (n, 3, 3))
+        blocks = [
+            # X -> X exp(e): P_c -> P_c - w x P_c - v
+            (d_uv_dP @ np.concatenate([_skew_rows(P_c), minus_I], 2)).reshape(2 * n, 6) @ M_X,
+            # B -> B exp(e): P_c -> P_c + R_cb (w x P_b + v)
+            (d_uv_dP @ np.concatenate([-T_cb[:3, :3] @ _skew_rows(det.object_points),
+                                       np.broadcast_to(T_cb[:3, :3], (n, 3, 3))], 2)
+             ).reshape(2 * n, 6) @ M_B,
+        ]
         if prob.refine_intrinsics:
-            J[blk, 12:16] = Jcv[:, 6:10]
-            J[blk, 16:16 + prob.n_dist] = Jcv[:, 10:10 + prob.n_dist]
+            blocks.append(Jcv[:, 6:10])
+            blocks.append(Jcv[:, 10:10 + prob.n_dist])
+        cols = shared
         if prob.with_delta:
             # F -> F exp(d) exp(e): P_f -> P_f - w x P_f - v, then P_c = R_X^T (P_f - t_X)
-            dPf = np.concatenate([_skew_rows(P_f), np.broadcast_to(-np.eye(3), (n, 3, 3))], 2)
+            dPf = np.concatenate([_skew_rows(P_f), minus_I], 2)
+            blocks.append((d_uv_dP @ (R_X.T @ dPf)).reshape(2 * n, 6)
+                          @ chart_jacobian(delta[i]))
             c = 12 + prob.n_intr + 6 * i
-            J[blk, c:c + 6] = (d_uv_dP @ (R_X.T @ dPf)).reshape(2 * n, 6) @ chart_jacobian(
-                delta[i])
-        r0 += 2 * n
-    J[:rows] /= prob.sigma_px
+            cols = shared + list(range(c, c + 6))
+        J = np.concatenate(blocks, axis=1) / prob.sigma_px
+        r = ((uv - det.image_points) / prob.sigma_px).ravel()
+        yield np.array(cols), J, r
+
+
+def _normal_equations(prob: _Problem, x: np.ndarray) -> _Normal:
+    """J^T J and J^T r of the whitened problem, accumulated view by view."""
+    p = 12 + prob.n_intr
+    V = prob.n_views if prob.with_delta else 0
+    A, ga = np.zeros((p, p)), np.zeros(p)
+    C, D, gd = np.zeros((V, p, 6)), np.zeros((V, 6, 6)), np.zeros((V, 6))
+    for i, (_, J, r) in enumerate(_view_blocks(prob, x)):
+        Ja = J[:, :p]
+        A += Ja.T @ Ja
+        ga += Ja.T @ r
+        if V:
+            Jd = J[:, p:]
+            C[i] = Ja.T @ Jd
+            D[i] = Jd.T @ Jd
+            gd[i] = Jd.T @ r
+    if V:
+        w = 1.0 / _prior_scale(prob)
+        D[:, np.arange(6), np.arange(6)] += w**2
+        gd += prob.split(x)[3] * w**2
+    return _Normal(A, ga, C, D, gd)
+
+
+def _jacobian(prob: _Problem, x: np.ndarray) -> np.ndarray:
+    """The dense whitened Jacobian of _residuals (for checks; the solver never forms it)."""
+    rows = []
+    for cols, J, _ in _view_blocks(prob, x):
+        full = np.zeros((len(J), prob.n_params))
+        full[:, cols] = J
+        rows.append(full)
     if prob.with_delta:
-        scale = np.array([prob.sigma_r] * 3 + [prob.sigma_t] * 3)
         c0 = 12 + prob.n_intr
+        prior = np.zeros((6 * prob.n_views, prob.n_params))
         idx = np.arange(6 * prob.n_views)
-        J[rows + idx, c0 + idx] = 1.0 / np.tile(scale, prob.n_views)
-    return J
+        prior[idx, c0 + idx] = 1.0 / np.tile(_prior_scale(prob), prob.n_views)
+        rows.append(prior)
+    return np.concatenate(rows)
 
 
 def _skew_rows(P: np.ndarray) -> np.ndarray:
@@ -237,21 +351,17 @@ def _skew_rows(P: np.ndarray) -> np.ndarray:
     return out
 
 
-def _update_sigmas(prob: _Problem, x: np.ndarray, jac, estimate_pose: bool) -> _Problem:
+def _update_sigmas(prob: _Problem, x: np.ndarray, estimate_pose: bool) -> _Problem:
     """Variance component estimation: pixel sigma from the residuals, pose sigmas from the
     deltas and how much of each delta the images (not the prior) determine."""
-    res = _residuals(prob, x)
-    n_pix = sum(2 * len(d) for d in prob.detections)
-    dof = max(n_pix - 6 * prob.n_views - 12 - prob.n_intr, 1)
-    sigma_px = prob.sigma_px * float(np.sqrt(np.sum(res[:n_pix] ** 2) / dof))
-    new = replace(prob, sigma_px=sigma_px)
+    pix = np.concatenate([r.ravel() for r in _pixel_residuals(prob, x)])
+    dof = max(len(pix) - 6 * prob.n_views - 12 - prob.n_intr, 1)
+    new = replace(prob, sigma_px=float(np.sqrt(np.sum(pix**2) / dof)))
     if not estimate_pose:
         return new
-    J = np.asarray(jac)
-    cov = np.linalg.pinv(J.T @ J)  # parameter covariance (rad, m, px)
-    _, _, _, delta = prob.split(x)
-    c0 = 12 + prob.n_intr
-    var = np.diag(cov)[c0:].reshape(-1, 6)
+    _, cov_d = _normal_equations(prob, x).covariance()
+    delta = prob.split(x)[3]
+    var = np.einsum("vii->vi", cov_d)
     s_r = _variance_component(delta[:, :3], var[:, :3], prob.sigma_r)
     s_t = _variance_component(delta[:, 3:], var[:, 3:], prob.sigma_t)
     return replace(new, sigma_r=max(s_r, SIGMA_FLOOR_R), sigma_t=max(s_t, SIGMA_FLOOR_T))
@@ -267,17 +377,11 @@ def _variance_component(d: np.ndarray, var: np.ndarray, sigma: float) -> float:
 
 def _result(prob: _Problem, x: np.ndarray, iterations: int) -> RefineResult:
     X, B, intr, delta = _transforms(prob, x)
-    per_view, sq = [], []
-    for i, det in enumerate(prob.detections):
-        uv, _, _ = _project(prob, det, X, B, prob.F[i] @ exp6(delta[i]), intr, False)
-        e2 = np.sum((uv - det.image_points) ** 2, axis=1)
-        per_view.append(math.sqrt(float(np.mean(e2))))
-        sq.append(e2)
-    J = _jacobian(prob, x)
-    cov = np.linalg.pinv(J.T @ J)[:6, :6]
+    errs = [np.sum(r**2, axis=1) for r in _pixel_residuals(prob, x)]
+    per_view = np.array([math.sqrt(float(np.mean(e))) for e in errs])
     M = chart_jacobian(prob.split(x)[0])
-    cov_X = M @ cov @ M.T  # in X's own (right-perturbation) frame
+    cov_a, _ = _normal_equations(prob, x).covariance()
+    cov_X = M @ cov_a[:6, :6] @ M.T  # in X's own (right-perturbation) frame
     return RefineResult(X, B, intr, delta.copy(), prob.sigma_px, prob.sigma_t, prob.sigma_r,
-                        math.sqrt(float(np.mean(np.concatenate(sq)))), np.array(per_view),
-                        cov_X, iterations)
-
+                        math.sqrt(float(np.mean(np.concatenate(errs)))), per_view, cov_X,
+                        iterations)
