@@ -36,6 +36,7 @@ from armstereo.calibration.poses import as_rigid, mean_pose, pose_difference
 from armstereo.calibration.refine import PoseErrorPrior, RefineResult, refine_hand_eye
 from armstereo.calibration.report import (
     LeaveOneOut,
+    arm_error_warnings,
     board_pose_spread,
     error_effects,
     leave_one_out,
@@ -164,6 +165,9 @@ def calibrate_from_detections(detections: Sequence[Detection | None],
         loo = leave_one_out(dets, flanges, refined, trusts_arm=options.pose_error is None,
                             refine_intrinsics=refine_k, distortion_model=options.distortion_model)
     warnings += view_warnings(refined.per_view_rms_px, views)
+    if options.pose_error is not None:
+        warnings += arm_error_warnings(refined.pose_sigma_t, float(np.degrees(
+            refined.pose_sigma_r)), loo.held_out_rms_all_px if loo else None, refined.rms_px)
     warnings += plausibility_warnings(refined.T_flange_camera)
 
     T_cb_final = [board_pose(d, refined.intrinsics) for d in dets]
@@ -177,7 +181,7 @@ def calibrate_from_detections(detections: Sequence[Detection | None],
     text = mount_toml(options.mount_name, refined.T_flange_camera, refined.intrinsics, comments)
     mount = CameraMount(options.mount_name, refined.T_flange_camera, refined.intrinsics, text)
     for w in warnings:
-        log.warning("%s", w)
+        log.debug("calibration warning: %s", w)
     return Calibration(mount, report, refined, closed, views, loo)
 
 

@@ -31,6 +31,10 @@ from armstereo.camera_model import Intrinsics
 from armstereo.transforms import invert
 
 BAD_VIEW_FACTOR = 3.0  # a view whose RMS exceeds this times the median is flagged
+# Estimated arm pose error per view above which the user should hear about it.
+ARM_ERROR_WARN_M = 0.0003
+ARM_ERROR_WARN_DEG = 0.02
+HELD_OUT_WARN_FACTOR = 2.0  # held-out reprojection this many times the fit's: arm disagrees
 MAX_PLAUSIBLE_CAMERA_DISTANCE_M = 0.3  # camera origin this far from the flange: suspicious
 
 
@@ -124,6 +128,22 @@ def view_warnings(per_view_rms_px: np.ndarray, views: Sequence[int]) -> list[str
            if e > BAD_VIEW_FACTOR * med and e > 0.5]
     return [f"view {v} fits badly ({e:.2f} px RMS, median {med:.2f}): motion blur, a "
             "misdetected corner or the arm still moving?" for v, e in bad]
+
+
+def arm_error_warnings(sigma_t_m: float, sigma_r_deg: float, held_out_px: float | None,
+                       fit_px: float) -> list[str]:
+    """Warn when the arm's reported poses disagree with the images by more than a good UR's."""
+    out = []
+    if sigma_t_m > ARM_ERROR_WARN_M or sigma_r_deg > ARM_ERROR_WARN_DEG:
+        out.append(f"the arm's reported poses disagree with the images by about "
+                   f"{sigma_t_m * 1000:.2f} mm and {sigma_r_deg:.3f} deg per view (estimated); "
+                   "the hand-eye absorbs part of that kinematic error: use the controller's "
+                   "calibrated kinematics, not the nominal model")
+    if held_out_px is not None and held_out_px > HELD_OUT_WARN_FACTOR * fit_px:
+        out.append(f"views left out of the fit are predicted with {held_out_px:.2f} px RMS "
+                   f"against {fit_px:.2f} px in the fit: the arm's poses, not the images, "
+                   "limit this calibration")
+    return out
 
 
 def plausibility_warnings(T_flange_camera: np.ndarray) -> list[str]:

@@ -37,8 +37,10 @@ class ViewPlanSettings:
     """Shape of the view set. Angles in degrees, lengths in metres."""
 
     n_views: int = 15
-    max_tilt_deg: float = 25.0  # of the optical axis about the board centre
-    max_roll_deg: float = 35.0  # about the optical axis
+    # Larger tilts pin the principal point (and so the hand-eye rotation) down better; 35 deg
+    # keeps a board that fills half the image in view on a UR5e (measured on simulations).
+    max_tilt_deg: float = 35.0  # of the optical axis about the board centre
+    max_roll_deg: float = 60.0  # about the optical axis
     distance_factors: tuple[float, ...] = (1.0, 0.85, 1.15)  # times the start distance
     joint_margin: float = 0.05  # rad, as capture's default
     min_sigma: float = 0.02  # smallest Jacobian singular value allowed, as capture's default
