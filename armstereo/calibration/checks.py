@@ -39,6 +39,9 @@ def usable_views(detections: Sequence[Detection | None]) -> tuple[list[int], lis
     good = [i for i, d in enumerate(detections) if d is not None and i not in small]
     warnings = []
     found = n - len(missing)
+    if n < MIN_VIEWS:
+        raise CalibrationInputError(f"only {n} views recorded (need >= {MIN_VIEWS}); record "
+                                    "more views (15 is a good number)")
     if found < max(MIN_VIEWS, MIN_FOUND_FRACTION * n):
         raise CalibrationInputError(
             f"board not found in {len(missing)} of {n} views ({_views(missing)}); keep the "
@@ -56,12 +59,6 @@ def usable_views(detections: Sequence[Detection | None]) -> tuple[list[int], lis
         warnings.append(f"{len(small)} views dropped: board too small (corners closer than "
                         f"{MIN_CORNER_SPACING_PX:g} px) in views {_views(small)}")
     return good, warnings
-
-
-def require_view_count(n: int, what: str = "views") -> None:
-    if n < MIN_VIEWS:
-        raise CalibrationInputError(f"only {n} usable {what} (need >= {MIN_VIEWS}); record more "
-                                    "views (15 or more is a good number)")
 
 
 def _views(idx: Sequence[int], limit: int = 8) -> str:

@@ -11,6 +11,7 @@ corners detected in rendered images.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import cv2
@@ -137,10 +138,14 @@ def perturbed_mount(nominal: CameraMount, rng: np.random.Generator, *,
 def simulate_session(model: ArmModel, board: Board, *, n_views: int = 15,
                      arm_error: str | ArmError = "ur_like", pixel_noise: float = 0.3,
                      seed: int = 0, render: bool = False, image_noise: float = 1.0,
-                     board_distance_m: float = 0.4,
-                     settings: ViewPlanSettings | None = None) -> SyntheticSession:
+                     board_distance_m: float = 0.45,
+                     settings: ViewPlanSettings | None = None,
+                     joints: Sequence[np.ndarray] | None = None) -> SyntheticSession:
     """Simulate a calibration session of ``model`` (which carries the *nominal* mount).
 
+    The board lies ``board_distance_m`` in front of the camera at the model's ready
+    configuration (or at ``joints[0]``); the views are planned with ``settings`` (default:
+    ``n_views`` views) unless ``joints`` (rad, one vector per view) are given.
     ``pixel_noise`` (px, per coordinate) is added to projected corners when ``render`` is
     False; with ``render`` the corners are detected in rendered grey images with
     ``image_noise`` grey levels of sensor noise (slower: about half a second per view).
@@ -155,7 +160,7 @@ def simulate_session(model: ArmModel, board: Board, *, n_views: int = 15,
     rng = np.random.default_rng(seed)
     arm = TrueArm(model.name, arm_error, np.random.default_rng([seed, 1]))
     true_mount = perturbed_mount(model.mount, rng)
-    q0 = ready_configuration(model.name)
+    q0 = ready_configuration(model.name) if joints is None else np.asarray(joints[0], float)
     # The board lies roughly square to the start camera's view, slightly turned and offset.
     T0_cam_true = arm.flange_pose(q0) @ true_mount.T_flange_camera
     R_cb = rot_z(rng.uniform(-0.3, 0.3)) @ rot_x(rng.uniform(-0.1, 0.1))
@@ -164,9 +169,11 @@ def simulate_session(model: ArmModel, board: Board, *, n_views: int = 15,
     T_base_board = T0_cam_true @ T_cb0
     # The planner sees the board with the nominal mount (as a real session would).
     T_cb_nominal = invert(model.camera_pose(q0)) @ T_base_board
-    plan = plan_calibration_views(model, q0, board, T_camera_board_start=T_cb_nominal,
-                                  settings=settings or ViewPlanSettings(n_views=n_views))
-    joints = [v.q for v in plan.views]
+    if joints is None:
+        plan = plan_calibration_views(model, q0, board, T_camera_board_start=T_cb_nominal,
+                                      settings=settings or ViewPlanSettings(n_views=n_views))
+        joints = [v.q for v in plan.views]
+    joints = [np.asarray(q, dtype=float) for q in joints]
     reported = [model.flange_pose(q) for q in joints]
     true = [arm.with_repeatability(arm.flange_pose(q)) for q in joints]
     X, intr = true_mount.T_flange_camera, true_mount.intrinsics
@@ -179,14 +186,15 @@ def simulate_session(model: ArmModel, board: Board, *, n_views: int = 15,
             images.append(img)
             detections.append(detect_board(img, board))
         else:
-            detections.append(_projected(board, intr, T_cb, pixel_noise, rng))
+            detections.append(observe_board(board, intr, T_cb, pixel_noise, rng))
     return SyntheticSession(board, true_mount, model.mount, T_base_board, joints, reported, true,
                             detections, images)
 
 
-def _projected(board: Board, intr: Intrinsics, T_cb: np.ndarray, noise: float,
-               rng: np.random.Generator) -> Detection | None:
-    """Exact projections of the corners plus Gaussian noise; None if any leaves the image."""
+def observe_board(board: Board, intr: Intrinsics, T_cb: np.ndarray, noise: float,
+                  rng: np.random.Generator) -> Detection | None:
+    """The board's corners projected from ``T_cb`` (board in camera_optical) plus Gaussian
+    noise (px per coordinate); None if any corner leaves the image (as a detector would)."""
     obj = board.object_points
     rvec = cv2.Rodrigues(np.ascontiguousarray(T_cb[:3, :3]))[0]
     uv, _ = cv2.projectPoints(obj, rvec, T_cb[:3, 3], intr.K, intr.dist)
