@@ -6,6 +6,7 @@ camera_optical (metres).
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -76,8 +77,9 @@ def calibrate_intrinsics(detections: Sequence[Detection], image_size: tuple[int,
     img = [d.image_points.astype(np.float32).reshape(-1, 1, 2) for d in detections]
     w, h = (int(v) for v in image_size)
     flags = _FIX_FLAGS[distortion_model]
-    rms, K, dist, rvecs, tvecs, std_intr, _, per_view = cv2.calibrateCameraExtended(
-        obj, img, (w, h), None, None, flags=flags, criteria=_CRITERIA)
+    with _one_opencv_thread():
+        rms, K, dist, rvecs, tvecs, std_intr, _, per_view = cv2.calibrateCameraExtended(
+            obj, img, (w, h), None, None, flags=flags, criteria=_CRITERIA)
     dist = np.asarray(dist, dtype=float).reshape(-1)[:5]
     if dist.size < 5:
         dist = np.pad(dist, (0, 5 - dist.size))
@@ -89,6 +91,18 @@ def calibrate_intrinsics(detections: Sequence[Detection], image_size: tuple[int,
     return IntrinsicsFit(intr, float(rms), per_view,
                          np.asarray(std_intr, dtype=float).reshape(-1)[:4], poses,
                          distortion_model)
+
+
+@contextlib.contextmanager
+def _one_opencv_thread():
+    """calibrateCamera sums in parallel, and its last digits then depend on the threads'
+    timing; one thread makes a recomputation (``--from``) bit-identical. It is fast anyway."""
+    previous = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        yield
+    finally:
+        cv2.setNumThreads(previous)
 
 
 def board_pose(detection: Detection, intrinsics: Intrinsics) -> np.ndarray:

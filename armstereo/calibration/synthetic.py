@@ -140,7 +140,8 @@ def simulate_session(model: ArmModel, board: Board, *, n_views: int = 15,
                      seed: int = 0, render: bool = False, image_noise: float = 1.0,
                      board_distance_m: float = 0.45,
                      settings: ViewPlanSettings | None = None,
-                     joints: Sequence[np.ndarray] | None = None) -> SyntheticSession:
+                     joints: Sequence[np.ndarray] | None = None,
+                     supersample: int = 2) -> SyntheticSession:
     """Simulate a calibration session of ``model`` (which carries the *nominal* mount).
 
     The board lies ``board_distance_m`` in front of the camera at the model's ready
@@ -148,7 +149,8 @@ def simulate_session(model: ArmModel, board: Board, *, n_views: int = 15,
     ``n_views`` views) unless ``joints`` (rad, one vector per view) are given.
     ``pixel_noise`` (px, per coordinate) is added to projected corners when ``render`` is
     False; with ``render`` the corners are detected in rendered grey images with
-    ``image_noise`` grey levels of sensor noise (slower: about half a second per view).
+    ``image_noise`` grey levels of sensor noise and ``supersample`` squared rays per pixel
+    (slower: a few tenths of a second per view).
     """
     if model.mount is None:
         raise ConfigError("simulate_session needs a model with a (nominal) mount")
@@ -182,7 +184,7 @@ def simulate_session(model: ArmModel, board: Board, *, n_views: int = 15,
         T_cb = invert(F @ X) @ T_base_board
         if render:
             img = render_board_view(board, intr, T_cb, noise_sigma=image_noise,
-                                    seed=seed * 1000 + k)
+                                    seed=seed * 1000 + k, supersample=supersample)
             images.append(img)
             detections.append(detect_board(img, board))
         else:
