@@ -200,6 +200,8 @@ def _report(board: Board, n_recorded: int, views: list[int],
             "recorded": n_recorded,
             "used": views,
             "board_not_found": [i for i, d in enumerate(detections) if d is None],
+            "board_too_small": [i for i, d in enumerate(detections)
+                                if d is not None and i not in views],
         },
         "intrinsics": {
             "source": "given" if given is not None else "estimated",

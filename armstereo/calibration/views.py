@@ -20,6 +20,7 @@ import cv2
 import numpy as np
 
 from armstereo.calibration.board import Board
+from armstereo.calibration.checks import MIN_VIEWS
 from armstereo.calibration.handeye import MotionDiversity, motion_diversity, motion_pairs
 from armstereo.calibration.poses import as_rigid, rotmat
 from armstereo.errors import ConfigError, IKError, PreflightError
@@ -27,7 +28,7 @@ from armstereo.kinematics import ArmModel
 from armstereo.transforms import invert, make_T
 
 GOLDEN_ANGLE_DEG = 180.0 * (3.0 - math.sqrt(5.0))  # ~137.5: azimuths never line up
-MIN_VIEWS, MAX_VIEWS = 6, 60
+MAX_VIEWS = 60
 DEFAULT_START_DISTANCE_M = 0.4  # assumed board distance when the start view was not measured
 SHRINK = (1.0, 0.6, 0.35)  # tilt/roll scales tried for a candidate before skipping it
 

@@ -70,6 +70,7 @@ def test_report_has_every_number_and_is_json(ur_like):
     assert r["views"]["used"] == list(range(15))
     np.testing.assert_allclose(r["T_flange_camera"], cal.mount.T_flange_camera)
     assert r["intrinsics"]["distortion_model"] == "k1k2"
+    assert r["warnings"] == []  # a good session raises no false alarm
 
 
 def test_mount_file_loads_back_identical(ur_like, tmp_path):
