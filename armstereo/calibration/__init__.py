@@ -25,12 +25,14 @@ from armstereo.calibration.mount_file import mount_toml, truth_error
 from armstereo.calibration.views import (
     CalibrationViewPlan,
     ViewPlanSettings,
+    board_in_start_view,
     plan_calibration_views,
 )
 
 __all__ = [
     "Board", "Calibration", "CalibrationInputError", "CalibrationOptions",
-    "CalibrationViewPlan", "Detection", "ViewPlanSettings", "calibrate_from_detections",
+    "CalibrationViewPlan", "Detection", "ViewPlanSettings", "board_in_start_view",
+    "calibrate_from_detections",
     "calibrate_from_views", "detect_board", "mount_toml", "parse_board",
     "plan_calibration_views", "truth_error",
 ]

@@ -19,10 +19,12 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from armstereo.calibration.board import Board
-from armstereo.calibration.checks import MIN_VIEWS
+from armstereo.calibration.board import Board, detect_board
+from armstereo.calibration.checks import MIN_CORNER_SPACING_PX, MIN_VIEWS, CalibrationInputError
 from armstereo.calibration.handeye import MotionDiversity, motion_diversity, motion_pairs
+from armstereo.calibration.intrinsics import board_pose
 from armstereo.calibration.poses import as_rigid, rotmat
+from armstereo.camera_model import Intrinsics
 from armstereo.errors import ConfigError, IKError, PreflightError
 from armstereo.kinematics import ArmModel
 from armstereo.transforms import invert, make_T
@@ -143,6 +145,21 @@ def plan_calibration_views(model: ArmModel, q_start: np.ndarray, board: Board, *
     cams = [invert(v.T_base_camera) @ T_base_board for v in views]
     div = motion_diversity(motion_pairs(flanges, cams))
     return CalibrationViewPlan(views, T_base_board, div, skipped)
+
+
+def board_in_start_view(image: np.ndarray, board: Board, intrinsics: Intrinsics) -> np.ndarray:
+    """T_camera_board of the board in the start image (nominal intrinsics are good enough for
+    planning); CalibrationInputError saying what to do when the board is not (well) visible."""
+    det = detect_board(image, board)
+    if det is None:
+        raise CalibrationInputError(
+            f"the {board.kind} is not found in the start image; jog the arm until the camera "
+            "sees the whole board from 0.3-0.5 m, evenly lit, and check --board")
+    if det.spacing_px < MIN_CORNER_SPACING_PX:
+        raise CalibrationInputError(
+            f"the board is too small in the start image (corners {det.spacing_px:.1f} px "
+            f"apart, need >= {MIN_CORNER_SPACING_PX:g}); start closer or use larger squares")
+    return board_pose(det, intrinsics)
 
 
 def _validate(s: ViewPlanSettings) -> None:

@@ -8,8 +8,14 @@ import cv2
 import numpy as np
 import pytest
 
-from armstereo.calibration.board import parse_board
-from armstereo.calibration.views import ViewPlanSettings, plan_calibration_views
+from armstereo.calibration.board import parse_board, render_board_view
+from armstereo.calibration.checks import CalibrationInputError
+from armstereo.calibration.poses import pose_difference
+from armstereo.calibration.views import (
+    ViewPlanSettings,
+    board_in_start_view,
+    plan_calibration_views,
+)
 from armstereo.errors import ConfigError, PreflightError
 from armstereo.kinematics import ArmModel, ready_configuration
 from armstereo.transforms import invert, make_T
@@ -110,3 +116,13 @@ def test_a_model_without_mount_cannot_plan():
     bare = ArmModel.load("ur5e")
     with pytest.raises(ConfigError, match="mount"):
         plan_calibration_views(bare, ready_configuration("ur5e"), BOARD)
+
+
+def test_the_start_view_locates_the_board_or_says_what_to_do(ur5e):
+    _, T_cb = _start_view(ur5e)
+    intr = ur5e.mount.intrinsics
+    img = render_board_view(BOARD, intr, T_cb, supersample=2)
+    dt, dr = pose_difference(board_in_start_view(img, BOARD, intr), T_cb)
+    assert dt < 0.001 and dr < 0.1
+    with pytest.raises(CalibrationInputError, match="not found in the start image"):
+        board_in_start_view(np.full((480, 640), 90, np.uint8), BOARD, intr)
