@@ -153,3 +153,38 @@ def plausibility_warnings(T_flange_camera: np.ndarray) -> list[str]:
                 "usually within 0.3 m: check that the poses are tool0 in base (not TCP or "
                 "base_link)"]
     return []
+
+
+def report_lines(report: dict) -> list[str]:
+    """The report as a few human-readable lines (what the CLI prints without --json)."""
+    intr = report["intrinsics"]
+    K, d = intr["K"], intr["dist"]
+    X = np.asarray(report["T_flange_camera"])
+    ref = report["refined"]
+    lines = [
+        f"intrinsics ({intr['source']}): fx {K[0][0]:.1f} fy {K[1][1]:.1f} cx {K[0][2]:.1f} "
+        f"cy {K[1][2]:.1f} px, k1 {d[0]:+.4f} k2 {d[1]:+.4f}; corner RMS {ref['rms_px']:.2f} px",
+        "hand-eye T_flange_camera (camera_optical in tool0): t = ("
+        + ", ".join(f"{v * 1000:.2f}" for v in X[:3, 3]) + f") mm, camera "
+        f"{report['camera_distance_from_flange_m'] * 1000:.0f} mm from the flange",
+    ]
+    q = report["quality"]
+    if "predicted_error" in q:
+        p, h, e = q["predicted_error"], q["held_out_reprojection_px"], q["effect"]
+        lines += [
+            f"predicted error (leave-one-out): {p['translation_m'] * 1000:.2f} mm, "
+            f"{p['rotation_deg']:.3f} deg",
+            f"held-out views reprojected with {h['rms']:.2f} px (fit {ref['rms_px']:.2f} px)",
+            f"at {e['working_distance_m']:.2f} m the cloud may be placed "
+            f"{e['placement_error_m'] * 1000:.1f} mm off and surfaces tilt "
+            f"{e['surface_tilt_m'] * 1000:.1f} mm across the view",
+        ]
+    s = q["board_pose_spread"]
+    lines.append(f"board pose spread {s['translation_m'] * 1000:.2f} mm, "
+                 f"{s['rotation_deg']:.3f} deg (consistency, not accuracy)")
+    lines.append("closed form vs refined: " + ", ".join(
+        f"{m} {c['difference_to_refined']['translation_m'] * 1000:.2f} mm / "
+        f"{c['difference_to_refined']['rotation_deg']:.3f} deg"
+        for m, c in report["closed_form"].items()))
+    lines += [f"warning: {w}" for w in report["warnings"]]
+    return lines

@@ -15,7 +15,13 @@ from pathlib import Path
 import numpy as np
 
 from armstereo.calibration.board import Board, parse_board
+from armstereo.calibration.calibrate import (
+    Calibration,
+    CalibrationOptions,
+    calibrate_from_views,
+)
 from armstereo.errors import ArmstereoError, RecordingError
+from armstereo.kinematics import ArmModel
 from armstereo.recording import Recording
 
 PURPOSE_KEY = "purpose"
@@ -75,3 +81,21 @@ def read_calibration_session(path: str | Path, board: Board | None = None) -> Ca
         raise RecordingError(f"{rec.path}: metadata names no robot model")
     return CalibrationSession(Path(path), images, joints, board, robot,
                               meta.get("mount_toml", ""), idx, list(rec.warnings))
+
+
+def calibrate_recording(path: str | Path, *, board: Board | None = None,
+                        robot: str | Path | None = None,
+                        options: CalibrationOptions | None = None) -> Calibration:
+    """``armstereo calibrate --from``: redo the calibration of a recorded session.
+
+    The arm model is the recorded one (by name) unless ``robot`` (a model name or URDF path)
+    is given; ``board`` overrides the recorded spec. The report gains ``"recording"`` (path,
+    views read, reader warnings).
+    """
+    session = read_calibration_session(path, board)
+    model = ArmModel.load(robot or session.robot)
+    cal = calibrate_from_views(session.images, session.joints, model, session.board,
+                               options=options or CalibrationOptions())
+    cal.report["recording"] = {"path": str(session.path), "views": session.view_indices,
+                               "warnings": session.warnings}
+    return cal

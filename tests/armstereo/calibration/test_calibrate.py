@@ -17,6 +17,7 @@ from armstereo.calibration.calibrate import (
 from armstereo.calibration.checks import CalibrationInputError
 from armstereo.calibration.handeye import METHODS
 from armstereo.calibration.mount_file import truth_error
+from armstereo.calibration.report import report_lines
 from armstereo.calibration.synthetic import simulate_session
 from armstereo.errors import ConfigError
 from armstereo.kinematics import ready_configuration
@@ -71,6 +72,9 @@ def test_report_has_every_number_and_is_json(ur_like):
     np.testing.assert_allclose(r["T_flange_camera"], cal.mount.T_flange_camera)
     assert r["intrinsics"]["distortion_model"] == "k1k2"
     assert r["warnings"] == []  # a good session raises no false alarm
+    lines = report_lines(r)
+    assert any(line.startswith("predicted error (leave-one-out)") for line in lines)
+    assert any("not accuracy" in line for line in lines)
 
 
 def test_mount_file_loads_back_identical(ur_like, tmp_path):

@@ -7,7 +7,11 @@ import pytest
 
 from armstereo.calibration.board import parse_board
 from armstereo.calibration.calibrate import CalibrationOptions, calibrate_from_views
-from armstereo.calibration.session import calibration_metadata, read_calibration_session
+from armstereo.calibration.session import (
+    calibrate_recording,
+    calibration_metadata,
+    read_calibration_session,
+)
 from armstereo.calibration.synthetic import simulate_session
 from armstereo.capture.run import model_metadata
 from armstereo.errors import RecordingError
@@ -56,3 +60,12 @@ def test_a_capture_recording_is_not_taken_for_a_calibration(ur5e, rendered, tmp_
     with pytest.raises(RecordingError, match="not a calibration recording"):
         read_calibration_session(path)
     assert len(read_calibration_session(path, board=BOARD).images) == 8
+
+
+def test_calibrate_recording_is_the_offline_entry_point(ur5e, rendered, tmp_path):
+    path = tmp_path / "calib.mcap"
+    _record(path, ur5e, rendered)
+    cal = calibrate_recording(path, options=OPTIONS)
+    live = calibrate_from_views(rendered.images, rendered.joints, ur5e, BOARD, options=OPTIONS)
+    np.testing.assert_allclose(cal.mount.T_flange_camera, live.mount.T_flange_camera, atol=1e-9)
+    assert cal.report["recording"]["views"] == list(range(8))
