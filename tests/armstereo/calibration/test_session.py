@@ -14,10 +14,10 @@ from armstereo.calibration.session import (
 )
 from armstereo.calibration.synthetic import simulate_session
 from armstereo.capture.run import model_metadata
+from armstereo.devices import Frame
 from armstereo.errors import RecordingError
 from armstereo.kinematics import ArmModel
 from armstereo.recording import RecordingWriter
-from drivers.base import Frame
 
 from .conftest import BOARD_SPEC
 

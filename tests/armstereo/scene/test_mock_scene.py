@@ -38,7 +38,7 @@ FATTENED = {"crate"}
 @pytest.fixture(scope="module")
 def demo(tmp_path_factory):
     out = tmp_path_factory.mktemp("demo")
-    run_demo(out, DemoOptions())
+    run_demo(out, DemoOptions(profile="ideal"))  # the gates are about the exact mock
     truth = default_table_scene(DemoOptions().seed).truth()
     analysis = analyze_scene(load_cloud(out / "points.ply"))
     return out, truth, analysis, score_scene(analysis, truth)
