@@ -93,20 +93,7 @@ class ArmModel:
         self.urdf_path = Path(urdf_path)
         self.urdf_sha256 = hashlib.sha256(self.urdf_path.read_bytes()).hexdigest()
         self.mount = mount
-        self._model = _build_model(str(self.urdf_path.resolve()), self.urdf_sha256)
-        self._data = self._model.createData()
-        self._flange_id = self._model.getFrameId(FLANGE_FRAME)
-        base_id = self._model.getFrameId(BASE_FRAME)
-        pin.framesForwardKinematics(self._model, self._data, pin.neutral(self._model))
-        self._world_M_base = self._data.oMf[base_id].copy()  # fixed: base hangs off the root
-        self._base_M_world = self._world_M_base.inverse()
-        R = self._base_M_world.rotation
-        self._twist_base_world = np.block([[R, np.zeros((3, 3))], [np.zeros((3, 3)), R]])
-        self.joint_names = tuple(self._model.names[1:])
-        self.lower = _frozen(self._model.lowerPositionLimit)
-        self.upper = _frozen(self._model.upperPositionLimit)
-        self.velocity_limits = _frozen(self._model.velocityLimit)
-        self._reach = _reach_bound(self._model, self._flange_id)
+        self._setup_from_model(_build_model(str(self.urdf_path.resolve()), self.urdf_sha256))
 
     @classmethod
     def load(cls, name_or_path: str | Path,
@@ -280,13 +267,13 @@ class ArmModel:
         return self
 
     def _setup_from_model(self, model: pin.Model) -> None:
-        """The part of __init__ after the Pinocchio model exists (same steps, same order)."""
+        """Everything derived from the Pinocchio model: workspace, frames, limits, reach."""
         self._model = model
         self._data = self._model.createData()
         self._flange_id = self._model.getFrameId(FLANGE_FRAME)
         base_id = self._model.getFrameId(BASE_FRAME)
         pin.framesForwardKinematics(self._model, self._data, pin.neutral(self._model))
-        self._world_M_base = self._data.oMf[base_id].copy()
+        self._world_M_base = self._data.oMf[base_id].copy()  # fixed: base hangs off the root
         self._base_M_world = self._world_M_base.inverse()
         R = self._base_M_world.rotation
         self._twist_base_world = np.block([[R, np.zeros((3, 3))], [np.zeros((3, 3)), R]])

@@ -46,7 +46,7 @@ def test_preflight_refuses_unreachable_and_forward_baselines(model):
     with pytest.raises(PreflightError, match="nothing moved"):
         far.require_ok()
     forward = plan_capture(model, q0, settings(direction="z"))
-    assert [c.name for c in forward.checks if not c.ok] == ["baseline direction"]
+    assert [c.name for c in forward.checks if not c.ok] == ["baseline direction", "stereo motion"]
     with pytest.raises(ConfigError):
         plan_capture(model, q0, settings(baseline=-0.1))
     with pytest.raises(ConfigError):

@@ -66,7 +66,7 @@ def test_full_disk_names_the_file_and_keeps_what_was_complete(tmp_path, capsys, 
 
     monkeypatch.setattr(files.tempfile, "mkstemp", fills_up)
     out = tmp_path / "out"
-    code, _, err = run(capsys, "reconstruct", SAMPLE_RECORDING, "--out", out)
+    code, _, err = run(capsys, "-q", "reconstruct", SAMPLE_RECORDING, "--out", out)
     assert code == 5
     one_line(err, "No space left on device", str(out / "pair000_depth.png"))
     assert (out / "pair000.ply").stat().st_size > 1000  # the complete output stays
