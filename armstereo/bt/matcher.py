@@ -16,7 +16,6 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numba
 import numpy as np
-from numba import njit
 
 from armstereo.bt.cost import (
     INF,
@@ -27,6 +26,7 @@ from armstereo.bt.cost import (
 )
 from armstereo.bt.dp import BORDER, INVALID, decode_matches, scanline_dp
 from armstereo.bt.dp_fast import scanline_dp_exact
+from armstereo.bt.jit import njit
 
 DP_EXACT = 0  # exact O(n nd) programme (default)
 DP_PRUNED = 1  # reference code's pruned search
