@@ -262,31 +262,36 @@ def _unsupported(disp: np.ndarray, flat: np.ndarray, tolerance: float) -> np.nda
     ``tolerance``): a plain wall between two edges of the same surface, not a gap or a
     background that the programme had to invent a disparity for.
     """
-    H, W = disp.shape
-    finite = np.isfinite(disp)
-    anchor = ~flat & finite
-    cols = np.arange(W)[None, :]
-    rows = np.arange(H)[:, None]
+    # transposed, so that the running maxima/minima along a row run down contiguous columns
+    dT = np.ascontiguousarray(disp.T)
+    W, H = dT.shape
+    finite = np.isfinite(dT)
+    anchor = ~np.ascontiguousarray(flat.T) & finite
+    cols = np.broadcast_to(np.arange(W, dtype=np.int32)[:, None], (W, H))
+    none_l, none_r = np.int32(-1), np.int32(W)
     # nearest anchor on each side, and where the run of finite pixels ends on each side
-    left = np.maximum.accumulate(np.where(anchor, cols, -1), axis=1)
-    right = np.minimum.accumulate(np.where(anchor, cols, W)[:, ::-1], axis=1)[:, ::-1]
-    start = np.maximum.accumulate(np.where(finite, -1, cols), axis=1)
-    stop = np.minimum.accumulate(np.where(finite, W, cols)[:, ::-1], axis=1)[:, ::-1]
+    left = np.maximum.accumulate(np.where(anchor, cols, none_l), axis=0)
+    right = np.minimum.accumulate(np.where(anchor, cols, none_r)[::-1], axis=0)[::-1]
+    start = np.maximum.accumulate(np.where(finite, none_l, cols), axis=0)
+    stop = np.minimum.accumulate(np.where(finite, none_r, cols)[::-1], axis=0)[::-1]
     has_left, has_right = left > start, right < stop
-    d_left = np.where(has_left, disp[rows, np.clip(left, 0, W - 1)], np.nan)
-    d_right = np.where(has_right, disp[rows, np.clip(right, 0, W - 1)], np.nan)
-    # within a texture window of the run's end one side is enough
-    near_start = ~has_left & (cols - start <= TEXTURE_WINDOW)
-    near_stop = ~has_right & (stop - cols <= TEXTURE_WINDOW)
-    d_left = np.where(near_start, d_right, d_left)
-    d_right = np.where(near_stop, d_left, d_right)
     left = np.where(has_left, left, cols)
     right = np.where(has_right, right, cols)
+    flat_d, lane = dT.ravel(), np.arange(H, dtype=np.int32)[None, :]
+    nan = np.float32(np.nan)
+    d_left = np.where(has_left, flat_d.take(left * np.int32(H) + lane), nan)
+    d_right = np.where(has_right, flat_d.take(right * np.int32(H) + lane), nan)
+    # a pixel squeezed between the run's end and an anchor within a texture window of it
+    # needs that anchor only
+    near = 2 * TEXTURE_WINDOW
+    d_left = np.where(~has_left & (right - start <= near), d_right, d_left)
+    d_right = np.where(~has_right & (stop - left <= near), d_left, d_right)
     with np.errstate(invalid="ignore"):
         span = tolerance + FLAT_SLOPE * (right - left)  # a slanted surface may change
         ok = (np.abs(d_left - d_right) <= span) & (
-            disp >= np.fmin(d_left, d_right) - tolerance) & (
-            disp <= np.fmax(d_left, d_right) + tolerance)
+            dT >= np.fmin(d_left, d_right) - tolerance) & (
+            dT <= np.fmax(d_left, d_right) + tolerance)
+    ok = ok.T
     return flat & ~ok
 
 
