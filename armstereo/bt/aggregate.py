@@ -1,4 +1,4 @@
-"""The scanline programme on window-aggregated dissimilarities, with its confidence outputs.
+"""The scanline programme on window-summed dissimilarities, plus one-pixel slant steps.
 
 The paper matches each scanline on single-pixel dissimilarities, so neighbouring rows decide
 independently (streaks) and every noise-level cost difference counts. Here the node cost of
@@ -6,17 +6,21 @@ independently (streaks) and every noise-level cost difference counts. Here the n
 over a ``(2 ry + 1) x (2 rx + 1)`` window around it at the same disparity; the match-sequence
 model, the occlusion rule (jumps only next to intensity variation) and the exact programme are
 those of :mod:`.dp_fast`, with the penalties scaled by the window's pixel count so that they
-keep their per-pixel meaning.
+keep their per-pixel meaning. A one-pixel disparity step may also cost a smaller ``slant``
+penalty, without intensity variation (a slanted surface rather than an occlusion).
 
 Rows are processed in a contiguous block: a ring of ``2 ry + 1`` horizontally summed rows and
 their running vertical sum give each row's (W, nd) cost slab with a few additions per entry.
 Pixels outside the validity masks take part in the sums with the edge-replicated values the
 caller fills in (a row's programme itself only uses its valid run, as in :mod:`.matcher`).
 
-Per left pixel the kernel also returns what the checks of :mod:`armstereo.stereo` need, read
-from the same slab: the chosen node's cost, the least cost at a disparity more than one away
-(the cost margin), the sub-pixel offset of a parabola through the costs at ``k - 1, k, k + 1``
-and the right image's best disparity at the matched right pixel (a cheap left-right check).
+Per left pixel the kernel also returns a sub-pixel offset: one Lucas-Kanade step over a 5x5
+window at the matched disparity, computed while the row's images are at hand (a few percent of
+the matching time, against a separate refinement pass over the whole map).
+
+The reward for a match can be withheld per left pixel (``textured``): matching a featureless
+pixel then gains nothing, so the programme has no reason to bend its path through a black gap
+at a wrong disparity and declare the textured pixels beside it occluded.
 
 Costs are integer sums in float32, divided by ``q`` (floor) when a row could otherwise exceed
 float32's exact integers: the programme's equality-based backtrack needs exact arithmetic.
