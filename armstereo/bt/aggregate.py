@@ -14,10 +14,6 @@ their running vertical sum give each row's (W, nd) cost slab with a few addition
 Pixels outside the validity masks take part in the sums with the edge-replicated values the
 caller fills in (a row's programme itself only uses its valid run, as in :mod:`.matcher`).
 
-Per left pixel the kernel also returns a sub-pixel offset: one Lucas-Kanade step over a 5x5
-window at the matched disparity, computed while the row's images are at hand (a few percent of
-the matching time, against a separate refinement pass over the whole map).
-
 The reward for a match can be withheld per left pixel (``textured``): matching a featureless
 pixel then gains nothing, so the programme has no reason to bend its path through a black gap
 at a wrong disparity and declare the textured pixels beside it occluded.
@@ -237,43 +233,6 @@ def _backtrack(cost, x_lo, nx, phi, pen_l, gr, occ, novar, rew, slant, q, match)
     return True
 
 
-@njit(cache=True)
-def _row_offsets(left, right, r, match, x_lo, nx, r0, dmin, f_row):
-    """Sub-pixel offset of each matched left pixel of image row ``r``: one Lucas-Kanade step
-    over the 3x3 window at the pixel's disparity (``L(x) ~ R(x - d - delta)``, symmetric
-    gradient), clamped to +-1; 0 where the window has no gradient."""
-    H, W = left.shape
-    one = np.float32(1.0)
-    for x in range(x_lo, nx):
-        y = match[x]
-        if y < 0:
-            continue
-        xl = r0 + dmin + x
-        xr = r0 + y
-        if xl < 1 or xr < 1 or xl > W - 2 or xr > W - 2:
-            f_row[xl] = 0.0
-            continue
-        sgg = np.float32(0.0)
-        sge = np.float32(0.0)
-        for rr in range(max(0, r - SUB_R), min(H, r + SUB_R + 1)):
-            lrow = left[rr]
-            rrow = right[rr]
-            for j in range(-SUB_R, SUB_R + 1):
-                a = xl + j
-                b = xr + j
-                if a < 1 or b < 1 or a > W - 2 or b > W - 2:
-                    continue
-                g = np.float32(0.25) * (np.float32(lrow[a + 1]) - np.float32(lrow[a - 1])
-                                        + np.float32(rrow[b + 1]) - np.float32(rrow[b - 1]))
-                e = np.float32(lrow[a]) - np.float32(rrow[b])
-                sgg += g * g
-                sge += g * e
-        off = np.float32(0.0)
-        if sgg > np.float32(1e-3):
-            off = max(-one, min(one, -sge / sgg))
-        f_row[xl] = off
-
-
 @njit(cache=True, inline="always")
 def _slide(total, slab, sign):
     """``total += sign * slab`` as plain loops (numba's array expressions allocate here)."""
@@ -288,14 +247,13 @@ def _slide(total, slab, sign):
 
 @njit(cache=True, nogil=True, fastmath=True)
 def match_block(left3, right3, left, right, lmask, rmask, textured, r_begin, r_end, dmin, nd,
-                occ, rew, slant, rx, ry, q, disp, state, f_map):
+                occ, rew, slant, rx, ry, q, disp, state):
     """Match image rows ``r_begin .. r_end - 1`` on aggregated costs.
 
     ``left3``/``right3``: (H, W, 1) uint8 grey images as given (intensity-variation flags);
     ``left``/``right``: (H, W) uint8 grey images filled outside the masks (costs). ``occ`` and
     ``rew``: doubled per-pixel penalty and reward. Outputs, indexed by left image pixel:
-    ``disp``/``state`` as :func:`armstereo.bt.matcher.match_rows` and ``f_map`` the
-    sub-pixel offset of :func:`_row_offsets` (0 where there is none).
+    ``disp``/``state`` as :func:`armstereo.bt.matcher.match_rows`.
     """
     H, W = left.shape
     n = ry * 2 + 1
@@ -328,7 +286,6 @@ def match_block(left3, right3, left, right, lmask, rmask, textured, r_begin, r_e
             _slide(total, ring[s], -1)
             _row_slab(left, right, min(H - 1, r + ry), dmin, rx, bl, br, raw, ring[s])
             _slide(total, ring[s], 1)
-        f_map[r, :] = 0.0
         la, lb, r0, r1, x0, u1, ra, rb = _begin_row(lmask[r], rmask[r], dmin, nd, disp[r],
                                                     state[r])
         if r1 <= r0 or u1 <= x0:
@@ -346,7 +303,6 @@ def match_block(left3, right3, left, right, lmask, rmask, textured, r_begin, r_e
         if _backtrack(slab, x_lo, nx, phi, pen_l, gr, occ_s, novar, rew_x, slant_s, q,
                       match[:nx]):
             _store_row(match[:nx], la, lb, r0, x_lo, dmin, dloc, sloc, disp[r], state[r])
-            _row_offsets(left, right, r, match[:nx], x_lo, nx, r0, dmin, f_map[r])
 
 
 def fill_outside(grey: np.ndarray, mask: np.ndarray) -> np.ndarray:
@@ -366,19 +322,18 @@ def match_image_aggregated(left: np.ndarray, right: np.ndarray, lmask: np.ndarra
                            threads: int = 1) -> dict[str, np.ndarray]:
     """Match (H, W) uint8 grey images on ``(2 ry + 1) x (2 rx + 1)`` aggregated costs.
 
-    Returns the maps of :func:`match_block` by name (``disp``, ``state``, ``offset``). Rows
-    run in ``threads`` contiguous blocks.
+    Returns the maps of :func:`match_block` by name (``disp``, ``state``). Rows run in
+    ``threads`` contiguous blocks.
     """
     H, W = left.shape
     q = cost_divisor(W, (2 * rx + 1) * (2 * ry + 1), occ)
     fl, fr = fill_outside(left, lmask), fill_outside(right, rmask)
-    out = dict(disp=np.empty((H, W), np.int32), state=np.empty((H, W), np.uint8),
-               offset=np.empty((H, W), np.float32))
+    out = dict(disp=np.empty((H, W), np.int32), state=np.empty((H, W), np.uint8))
     if textured is None:
         textured = np.ones((H, W), np.bool_)
     args = (left[:, :, None], right[:, :, None], fl, fr, lmask, rmask,
             np.ascontiguousarray(textured, np.bool_))
-    maps = (out["disp"], out["state"], out["offset"])
+    maps = (out["disp"], out["state"])
     n = max(1, min(H, threads))
     cuts = np.linspace(0, H, n + 1).round().astype(int)
     if n == 1:
