@@ -5,9 +5,10 @@ synthetic rectified scenes rendered here with exact ground truth (textured plane
 fronto-parallel, seen by two pinhole cameras; supersampled, with sensor noise). Scores: bad-2
 (share of non-occluded pixels with |error| > 2 px or no answer) leaving out the left band of
 width ``min_disparity + max_disparity`` where SGBM answers nothing, and the median time of
-several runs, the two peers interleaved. Targets: averaged bad-2 of Birchfield-Tomasi at most
-1.3x SGBM's, total time at most 1.5x. ``--variants`` also scores option sets of
-``birchfield()``: the measurements behind its defaults.
+several runs, the two peers interleaved. Targets (issue 14): bad-2 of Birchfield-Tomasi at most
+SGBM's on each pair, time at most SGBM's. ``--variants`` also scores option sets of
+``birchfield()``: the measurements behind its defaults (the real-photograph side of them is
+bench/real_multiview.py).
 
 Run: ``.venv/bin/python bench/stereo.py [--repeats 7] [--threads 1 2] [--variants]
 [--out bench/results/stereo.md]``.
@@ -34,7 +35,7 @@ sys.path.insert(0, str(ROOT))
 
 from armstereo.evaluation.disparity import evaluate_disparity  # noqa: E402
 from armstereo.io.disparity import read_disparity  # noqa: E402
-from armstereo.reconstruct.stereo import compute_disparity  # noqa: E402
+from armstereo.reconstruct.stereo import PAPER_OPTIONS, compute_disparity  # noqa: E402
 
 MIDDLEBURY = ROOT / "tests" / "data" / "middlebury"
 RESULTS = ROOT / "bench" / "results" / "stereo.md"
@@ -190,20 +191,31 @@ def synthetic_cases() -> list[Case]:
 
 PEERS = {"Birchfield-Tomasi": dict(method="birchfield"), "StereoSGBM": dict(method="sgbm")}
 # Options of birchfield() scored beside the defaults: the measurements behind the defaults.
+PREVIOUS_DEFAULTS = dict(cost_window=(1, 1), slant_penalty=None, postprocess="paper",
+                         texture_threshold=0.0, reward_texture=0.0, speckle_size=0,
+                         subpixel="gradient", occlusions="nan")
 VARIANTS = {
     "defaults": {},
+    "previous defaults (paper DP + its postprocessing + gradient sub-pixel)": PREVIOUS_DEFAULTS,
+    "PAPER_OPTIONS (the paper's matcher as published)": PAPER_OPTIONS,
+    "texture_threshold=0 (dense)": dict(texture_threshold=0.0),
+    "texture_threshold=0, reward_texture=0": dict(texture_threshold=0.0, reward_texture=0.0),
+    "texture_threshold=0.5": dict(texture_threshold=0.5),
+    "cost_window=(1, 1)": dict(cost_window=(1, 1)),
+    "cost_window=(3, 3)": dict(cost_window=(3, 3)),
+    "cost_window=(1, 5)": dict(cost_window=(1, 5)),
+    "slant_penalty=None": dict(slant_penalty=None),
+    "slant_penalty=5": dict(slant_penalty=5),
+    "speckle_size=0": dict(speckle_size=0),
+    "postprocess=paper": dict(postprocess="paper"),
+    "postprocess=none": dict(postprocess="none"),
+    "subpixel=none": dict(subpixel="none"),
+    "subpixel=gradient": dict(subpixel="gradient"),
     "occlusions=fill (paper's background fill)": dict(occlusions="fill"),
     "lr_check=True": dict(lr_check=True),
-    "subpixel=none": dict(subpixel="none"),
-    "subpixel=parabola": dict(subpixel="parabola"),
-    "color=sum": dict(color="sum"),
-    "color=max": dict(color="max"),
-    "postprocess=False": dict(postprocess=False),
-    "occlusion_penalty=15": dict(occlusion_penalty=15),
     "occlusion_penalty=35": dict(occlusion_penalty=35),
     "match_reward=3": dict(match_reward=3),
-    "match_reward=8": dict(match_reward=8),
-    "search=pruned (reference code's search)": dict(search="pruned"),
+    "color=sum (single-pixel kernels)": dict(color="sum"),
 }
 
 
@@ -281,10 +293,12 @@ def peers_table(rows: list[tuple[Case, dict[str, dict]]]) -> tuple[str, dict]:
         "**average / total**", "", "", f"**{100 * summary[a]['bad2']:.2f}**",
         f"**{100 * summary[b]['bad2']:.2f}**", f"**{1000 * summary[a]['time']:.0f}**",
         f"**{1000 * summary[b]['time']:.0f}**", f"**{summary['time_ratio']:.2f}**"]) + " |")
-    verdict = (f"Averaged bad-2 ratio {summary['bad2_ratio']:.2f} (target <= 1.3: "
-               f"{'met' if summary['bad2_ratio'] <= 1.3 else 'MISSED'}); total median time "
-               f"ratio {summary['time_ratio']:.2f} (target <= 1.5: "
-               f"{'met' if summary['time_ratio'] <= 1.5 else 'MISSED'}).")
+    worse = [case.name for case, res in rows if res[a]["bad2"] > res[b]["bad2"]]
+    slower = [case.name for case, res in rows if res[a]["time"] > res[b]["time"]]
+    verdict = (f"Averaged bad-2 ratio {summary['bad2_ratio']:.2f}, total median time ratio "
+               f"{summary['time_ratio']:.2f}. Per-pair targets (bad-2 and time at most SGBM's): "
+               f"bad-2 {'met' if not worse else 'MISSED on ' + ', '.join(worse)}; time "
+               f"{'met' if not slower else 'MISSED on ' + ', '.join(slower)}.")
     return "\n".join(lines) + "\n\n" + verdict + "\n", summary
 
 

@@ -51,8 +51,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     bt.add_argument("--occlusions", choices=OCCLUSION_MODES, default="nan",
                     help="nan: no disparity where a nearer surface hides the pixel (default); "
                     "fill: the paper's background fill")
-    bt.add_argument("--subpixel", choices=SUBPIXEL_MODES, default="gradient",
-                    help="subpixel refinement (default gradient)")
+    bt.add_argument("--subpixel", choices=SUBPIXEL_MODES, default="fast",
+                    help="subpixel refinement (default fast)")
     bt.add_argument("--lr-check", action="store_true",
                     help="reject pixels failing a left-right consistency check (twice the time)")
     bt.add_argument("--no-postprocess", action="store_true",

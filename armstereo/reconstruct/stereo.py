@@ -11,23 +11,34 @@ Validity masks (``left_mask``/``right_mask``, True = real pixel) mark the pixels
 rectification warp filled in from outside the source image: they take no part in matching
 (their black fill would create false edges) and get NaN.
 
-Defaults of :func:`birchfield`, measured with ``bench/stereo.py --variants`` (four Middlebury
-pairs and two rendered scenes; bad-2 on non-occluded pixels averaged, "wrong" = answered
-pixels off by more than 2 px; table in bench/results/stereo.md):
+Defaults of :func:`birchfield` were chosen by measurement: on calibrated real photographs
+through the whole pose-based path (``bench/real_multiview.py``, results and the held-out pairs
+in bench/results/real_multiview.md) and on the Middlebury pairs (``bench/stereo.py``,
+bench/results/stereo.md). What changed from the paper's matcher (:data:`PAPER_OPTIONS`
+restores it) and why:
 
-- the paper's ``occlusion_penalty=25``, ``match_reward=5``: 35 lowers the average bad-2
-  (3.5 % against 3.7 %) but worsens four of the six pairs; 15, and rewards 3 or 8, are worse;
-- ``color="gray"``: summing the channels (3.9 %) or taking their maximum (4.8 %) did not help
-  on average and takes 1.6-2.5x the time;
-- ``postprocess=True``: without it 4.9 %;
-- ``subpixel="gradient"``: 3.7 % against 3.8 % without and 3.9 % with the parabola, and the
-  smallest median error (0.13 px against 0.25 px without), for 15-35 % more time;
-- ``occlusions="nan"``: the paper's background fill scores better on bad-2 (3.1 %), which
-  counts a missing answer as wrong, but answers wrongly more often (4.1 % of its answers,
-  against 3.7 %); for point clouds a hole is cheaper than a false point;
-- ``lr_check=False``: it removes more false answers (3.3 %) but also good ones (bad-2 4.8 %)
-  and takes 1.6-2.3x the time; worth it where outliers matter more than coverage;
-- ``search="exact"``: the reference code's pruned search is about as accurate, 18x slower.
+- ``cost_window=(1, 3)``: dissimilarities summed over three rows tie neighbouring scanlines
+  together (the paper's rows streak); wider windows blurred depth edges without gaining;
+- ``slant_penalty=10``: the paper charges a full occlusion for every one-pixel disparity step,
+  so slanted and curved surfaces became staircases or were lost; a cheaper step that needs
+  no intensity variation keeps them (5 let the programme creep into occluded strips);
+- ``reward_texture=0.5``: matching a pixel without texture earns no reward, so the programme
+  no longer bends its path to match a black gap at a wrong disparity and then declares the
+  textured column beside it occluded (the temple's lost column);
+- ``texture_threshold=1.0``: no disparity on flat pixels unless the textured pixels on both
+  sides of them on the row agree (a plain wall between two edges is kept, a background or a
+  gap is not): the main source of points outside the object on real photographs. It costs
+  answers on the large flat areas of Middlebury's Tsukuba and Venus (bad-2 counts a missing
+  answer as wrong); ``texture_threshold=0`` gives a dense map;
+- ``speckle_size=100``: small islands of disparity are removed as SGBM does;
+- ``postprocess="median"`` (``True``): a 5x5 median of the sub-pixel map replaces the paper's
+  propagation and mode filters, which the summed costs made unnecessary (``"paper"`` keeps
+  them);
+- ``subpixel="fast"``: one gradient step over 5x5 in whole-image array operations, a few
+  percent of the match time, instead of the iterated same-surface refinement;
+- unchanged: ``occlusion_penalty=25``, ``match_reward=5`` (the paper's), ``color="gray"``,
+  ``occlusions="nan"`` (a hole is cheaper than a false point in a cloud), ``lr_check=False``
+  (twice the time), ``search="exact"``.
 """
 
 from __future__ import annotations
@@ -35,16 +46,17 @@ from __future__ import annotations
 import logging
 
 import cv2
+import numba
 import numpy as np
 
 from armstereo.errors import StereoError
 from armstereo.reconstruct.birchfield import dp_pruned as _dp
+from armstereo.reconstruct.birchfield.aggregate import match_image_aggregated
 from armstereo.reconstruct.birchfield.dp_exact import max_exact_width
 from armstereo.reconstruct.birchfield.matcher import DP_EXACT, DP_PRUNED, match_image
 from armstereo.reconstruct.birchfield.postprocess import postprocess as _postprocess
 from armstereo.reconstruct.birchfield.refine import (
     left_right_mismatch,
-    occluded_by_nearer,
     refine_gradient,
     refine_parabola,
 )
@@ -53,54 +65,94 @@ log = logging.getLogger(__name__)
 
 METHODS = ("birchfield", "sgbm")
 COLOR_MODES = ("gray", "sum", "max")
-SUBPIXEL_MODES = ("none", "parabola", "gradient")
+SUBPIXEL_MODES = ("fast", "none", "parabola", "gradient")
 SEARCH_MODES = ("exact", "pruned")
 OCCLUSION_MODES = ("nan", "fill")
+POSTPROCESS_MODES = ("median", "paper", "none")
+
+# Defaults chosen on the benchmarks (module doc, "Defaults")
+COST_WINDOW = (1, 3)  # (width, height) of the summed-cost window
+SLANT_PENALTY = 10.0  # grey levels, for a one-pixel disparity step
+TEXTURE_THRESHOLD = 1.0  # grey levels per pixel, mean |horizontal gradient| over the window
+TEXTURE_WINDOW = 5
+REWARD_TEXTURE = 0.5  # grey levels per pixel: matching flatter pixels earns no reward
+SPECKLE_SIZE = 100  # pixels
+SPECKLE_RANGE = 2.0  # pixels of disparity
+MEDIAN_SIZE = 5
+OCCLUSION_MARGIN = 1.0  # pixels: see _hidden_by_nearer
+FLAT_TOLERANCE = 1.0  # pixels: see _unsupported
+FLAT_SLOPE = 0.1  # disparity change per pixel a flat run may bridge
+
+# The paper's matcher as published (single-pixel costs, its postprocessing, nothing added)
+PAPER_OPTIONS = dict(cost_window=(1, 1), slant_penalty=None, postprocess="paper",
+                     texture_threshold=0.0, reward_texture=0.0, speckle_size=0,
+                     subpixel="none", occlusions="fill")
 
 # gradient refinement passes: averaged bad-2 3.79 % with 1, 3.72 % with 2, 3.68 % with 3
+SUBPIXEL_WINDOW = 5  # "fast" sub-pixel step: window side (pixels)
+SUBPIXEL_MIN_GRADIENT = 1e-3  # sum of squared gradients below which no step is taken
 SUBPIXEL_ITERATIONS = 2
 SUBPIXEL_MAX_SHIFT = 1.0
 
 
 def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
                min_disparity: int = 0, occlusion_penalty: float = 25, match_reward: float = 5,
-               color: str = "gray", postprocess: bool = True, occlusions: str = "nan",
-               lr_check: bool = False, subpixel: str = "gradient", subpixel_radius: int = 5,
+               color: str = "gray", postprocess: bool | str = True, occlusions: str = "nan",
+               lr_check: bool = False, subpixel: str = "fast", subpixel_radius: int = 5,
                search: str = "exact", left_mask: np.ndarray | None = None,
-               right_mask: np.ndarray | None = None, threads: int | None = None) -> np.ndarray:
-    """Birchfield-Tomasi pixel-to-pixel stereo (ICCV'98) with the paper's postprocessing.
+               right_mask: np.ndarray | None = None, threads: int | None = None,
+               cost_window: tuple[int, int] = COST_WINDOW,
+               slant_penalty: float | None = SLANT_PENALTY,
+               texture_threshold: float = TEXTURE_THRESHOLD,
+               speckle_size: int = SPECKLE_SIZE, speckle_range: float = SPECKLE_RANGE,
+               reward_texture: float = REWARD_TEXTURE) -> np.ndarray:
+    """Birchfield-Tomasi pixel-to-pixel stereo (ICCV'98), made robust for real photographs.
 
     The algorithm: the sampling-insensitive symmetric dissimilarity, one dynamic programme per
     scanline over match sequences (an occlusion costs ``occlusion_penalty`` once, each match
-    earns ``match_reward``, occlusions only next to intensity variation; grey-level units), then
-    the paper's propagation across scanlines and mode filters (``postprocess``). Options beyond
-    the paper:
+    earns ``match_reward``, occlusions only next to intensity variation; grey-level units),
+    then postprocessing. :data:`PAPER_OPTIONS` gives the paper's plain matcher; the defaults
+    add (see "Defaults" in the module doc for why):
 
+    - ``cost_window`` ``(width, height)``: node costs are dissimilarities summed over this
+      window at the same disparity (penalties scale with it); ``(1, 1)`` is the paper's.
+      Summing over rows ties neighbouring scanlines together (no streaks).
+    - ``slant_penalty``: a one-pixel disparity step costs this instead of an occlusion and
+      needs no intensity variation (slanted surfaces); None = the paper's model.
+    - ``texture_threshold``: a pixel is flat where the mean absolute horizontal gradient over
+      a 5x5 window is below this (grey levels per pixel); a flat pixel keeps its disparity
+      only if the nearest textured pixels left and right of it on the row agree with it
+      (:func:`_unsupported`), else NaN: no invented depth on backgrounds and gaps. 0 = off.
+    - ``reward_texture``: matching a left pixel flatter than this earns no ``match_reward``,
+      so the programme gains nothing by matching featureless pixels. 0 = reward everywhere.
+    - ``speckle_size``/``speckle_range``: NaN on connected regions of fewer than
+      ``speckle_size`` pixels whose disparity differs by more than ``speckle_range`` from
+      their surroundings (OpenCV's ``filterSpeckles``, as SGBM does); 0 = off.
+    - ``postprocess``: ``"median"`` (True): 5x5 median of the sub-pixel map; ``"paper"``:
+      the paper's propagation across scanlines and mode filters; ``"none"`` (False).
+    - ``subpixel``: ``"fast"``: one Lucas-Kanade step over a 5x5 window, each pixel at its own
+      disparity (:func:`_gradient_step`); ``"gradient"`` (iterated, over a window of the same
+      surface) or ``"parabola"`` (windowed SSD at d-1, d, d+1), both with a
+      ``2 * subpixel_radius + 1`` window; ``"none"``.
     - ``search``: ``"exact"`` solves each scanline's programme exactly in O(width x
-      disparities) with running minima; ``"pruned"`` is the reference code's pruned search (a
-      heuristic, O(width x disparities^2) in flat regions): about the same accuracy, 18x
-      slower.
-    - ``color``: ``"gray"`` matches the BGR2GRAY image (the paper's setting); ``"sum"``/
-      ``"max"`` combine per-channel dissimilarities (the sum is scaled back to grey units).
+      disparities); ``"pruned"`` is the reference code's heuristic search (about 18x slower).
+    - ``color``: ``"gray"`` matches the BGR2GRAY image; ``"sum"``/``"max"`` combine
+      per-channel dissimilarities. ``"pruned"``, ``"sum"`` and ``"max"`` run the paper's
+      single-pixel kernels: ``cost_window`` and ``slant_penalty`` do not apply.
     - ``occlusions``: ``"nan"`` leaves NaN on left pixels the final map itself shows hidden by
-      a nearer pixel (more than one pixel behind, so slanted surfaces keep their pixels);
-      ``"fill"`` keeps the paper's background fill there.
+      a nearer pixel (more than one pixel behind); ``"fill"`` keeps the paper's background fill.
     - ``lr_check``: also match right-to-left (mirrored pair) and reject disparities that differ
       by more than one pixel. Matching takes twice as long.
-    - ``subpixel``: ``"gradient"`` (iterated 1-D Lucas-Kanade over a window of the same
-      surface), ``"parabola"`` (parabola through windowed SSD at d-1, d, d+1) or ``"none"``;
-      the window is ``2 * subpixel_radius + 1`` pixels square.
     - ``threads``: rows are matched on this many threads (default ``numba.get_num_threads()``).
 
-    Defaults were chosen by measurement: see "Defaults" in the module doc.
-
-    Untextured regions take their disparity from their edges and from propagation; a
-    completely flat pair gives ``min_disparity`` everywhere, as in the paper. Left pixels whose
-    partner would lie left of the right image (the strip ``x < d``) are NaN.
+    Every returned disparity lies in ``[min_disparity, min_disparity + max_disparity]``. Left
+    pixels whose partner would lie left of the right image (the strip ``x < d``) are NaN.
 
     Raises StereoError for unusable input (sizes, dtype, disparity range, masks, options).
     """
-    _check_options(color=color, subpixel=subpixel, search=search, occlusions=occlusions)
+    postprocess = _postprocess_mode(postprocess)
+    _check_options(color=color, subpixel=subpixel, search=search, occlusions=occlusions,
+                   postprocess=postprocess)
     left, right, lmask, rmask = _prepare(left, right, max_disparity, min_disparity, left_mask,
                                          right_mask)
     if threads is not None and threads < 1:
@@ -108,50 +160,216 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
     if occlusion_penalty < 0 or match_reward < 0 or subpixel_radius < 0:
         raise StereoError(f"occlusion_penalty ({occlusion_penalty}), match_reward "
                           f"({match_reward}) and subpixel_radius ({subpixel_radius}) must be >= 0")
+    rx, ry = _window_radii(cost_window)
+    if slant_penalty is not None and slant_penalty < 0:
+        raise StereoError(f"slant_penalty must be >= 0 or None, got {slant_penalty}")
+    if texture_threshold < 0 or speckle_size < 0 or speckle_range < 0:
+        raise StereoError("texture_threshold, speckle_size and speckle_range must be >= 0")
+    if color != "gray" or search != "exact":  # only the paper's single-pixel kernels
+        rx, ry, slant_penalty = 0, 0, None
+    aggregated = (rx, ry) != (0, 0) or slant_penalty is not None
     gl, gr = _grey(left), _grey(right)
     ml, mr = (gl[:, :, None], gr[:, :, None]) if color == "gray" else (left, right)
     units = 2 * (ml.shape[2] if color == "sum" else 1)  # doubled units, summed channels
     occ = int(round(occlusion_penalty * units))
-    if search == "exact":
+    if search == "exact" and not aggregated:
         _check_exact_width(left.shape[1], ml.shape[2] if color == "sum" else 1, occ)
-    params = dict(dmin=min_disparity, nd=max_disparity + 1,
-                  occ=occ, rew=int(round(match_reward * units)),
-                  combine_max=color == "max", mode=DP_EXACT if search == "exact" else DP_PRUNED,
-                  threads=threads, postprocess=postprocess)
-    idx = _match(ml, mr, lmask, rmask, **params)
-    reject = idx < 0
+    n_threads = threads or numba.get_num_threads()
+    params = dict(dmin=min_disparity, nd=max_disparity + 1, occ=occ,
+                  rew=int(round(match_reward * units)), combine_max=color == "max",
+                  mode=DP_EXACT if search == "exact" else DP_PRUNED, threads=n_threads,
+                  rx=rx, ry=ry, slant=-1 if slant_penalty is None else int(round(
+                      slant_penalty * units)), aggregated=aggregated,
+                  paper_postprocess=postprocess == "paper")
+    flat = _textureless(gl, texture_threshold) if texture_threshold > 0 else None
+    idx, state = _match(ml, mr, lmask, rmask, textured=_rewarded(gl, reward_texture), **params)
+    if subpixel == "fast":
+        offset = _gradient_step(gl, gr, idx, min_disparity)
+    else:
+        offset = np.zeros(idx.shape, np.float32)
+    dense = idx.astype(np.float32) + offset
+    if postprocess == "median":
+        dense = np.where(idx >= 0, cv2.medianBlur(dense, MEDIAN_SIZE), dense)
+    reject = (idx < 0) | (state >= _dp.BORDER)
+    if flat is not None:
+        reject |= _unsupported(np.where(reject, np.nan, dense), flat, FLAT_TOLERANCE)
     if occlusions == "nan":
-        reject |= occluded_by_nearer(idx, 1)
+        reject |= _hidden_by_nearer(np.where(reject, np.nan, dense), OCCLUSION_MARGIN)
     if lr_check:
-        idx_r = _match(mr[:, ::-1], ml[:, ::-1], rmask[:, ::-1], lmask[:, ::-1], **params)
+        idx_r, state_r = _match(mr[:, ::-1], ml[:, ::-1], rmask[:, ::-1], lmask[:, ::-1],
+                                   textured=_rewarded(gr[:, ::-1], reward_texture), **params)
         # mirrored, swapped pair: its "left" is the mirrored right image
+        idx_r = np.where(state_r >= _dp.BORDER, -1, idx_r)
         idx_r = np.ascontiguousarray(idx_r[:, ::-1])
-        reject |= left_right_mismatch(idx, idx_r, min_disparity, 1)
-    disp = (idx + min_disparity).astype(np.float32)
+        reject |= left_right_mismatch(np.where(reject, -1, idx), idx_r, min_disparity, 1)
+    disp = dense + np.float32(min_disparity)
     disp[reject] = np.nan
-    if subpixel == "gradient":
-        disp = refine_gradient(gl.astype(np.float32), gr.astype(np.float32), disp,
-                               subpixel_radius, SUBPIXEL_ITERATIONS, SUBPIXEL_MAX_SHIFT)
-    elif subpixel == "parabola":
-        disp = refine_parabola(gl.astype(np.float32), gr.astype(np.float32), disp,
-                               subpixel_radius)
+    if subpixel in ("gradient", "parabola"):
+        whole = np.rint(disp)
+        if subpixel == "gradient":
+            disp = refine_gradient(gl.astype(np.float32), gr.astype(np.float32), whole,
+                                   subpixel_radius, SUBPIXEL_ITERATIONS, SUBPIXEL_MAX_SHIFT)
+        else:
+            disp = refine_parabola(gl.astype(np.float32), gr.astype(np.float32), whole,
+                                   subpixel_radius)
+    if speckle_size > 0:
+        _remove_speckles(disp, speckle_size, speckle_range)
+    return _clip_to_window(disp, min_disparity, max_disparity)
+
+
+def _gradient_step(left: np.ndarray, right: np.ndarray, idx: np.ndarray,
+                   dmin: int) -> np.ndarray:
+    """Sub-pixel offsets: one Lucas-Kanade step per pixel over a SUBPIXEL_WINDOW square.
+
+    Each pixel contributes at its own integer disparity ``d``: the residual ``e = L(x) -
+    R(x - d)`` and the symmetric gradient ``g`` (mean of both images' central differences);
+    with ``L(x) ~ R(x - d - delta)`` the window's least-squares step is ``delta = -sum(g e) /
+    sum(g^2)``, clamped to +-1 (0 where the window has no gradient). Whole-image array
+    operations, a few percent of the matching time.
+    """
+    H, W = idx.shape
+    # central differences (the 1x3 Sobel kernel, halved)
+    gl = cv2.Sobel(left, cv2.CV_32F, 1, 0, ksize=1, scale=0.5)
+    gr = cv2.Sobel(right, cv2.CV_32F, 1, 0, ksize=1, scale=0.5)
+    xr = np.arange(W, dtype=np.int32)[None, :] - (idx + np.int32(dmin))
+    ok = (idx >= 0) & (xr >= 1) & (xr <= W - 2)
+    at = np.where(ok, xr, 0) + np.arange(0, H * W, W, dtype=np.int32)[:, None]  # flat index
+    half = np.float32(0.5)
+    g = np.where(ok, half * (gl + gr.ravel().take(at)), np.float32(0))
+    e = left.astype(np.float32) - right.ravel().take(at)
+    win = (SUBPIXEL_WINDOW, SUBPIXEL_WINDOW)
+    sgg = cv2.boxFilter(g * g, -1, win, normalize=False)
+    sge = cv2.boxFilter(g * e, -1, win, normalize=False)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        step = np.where(sgg > SUBPIXEL_MIN_GRADIENT, -sge / sgg, np.float32(0))
+    return np.clip(step, -SUBPIXEL_MAX_SHIFT, SUBPIXEL_MAX_SHIFT).astype(np.float32)
+
+
+def _postprocess_mode(postprocess: bool | str) -> str:
+    if postprocess is True:
+        return "median"
+    if postprocess is False:
+        return "none"
+    return postprocess
+
+
+def _rewarded(grey: np.ndarray, threshold: float) -> np.ndarray | None:
+    """Left pixels whose match earns the reward: those with texture (None = all)."""
+    if threshold <= 0:
+        return None
+    return ~_textureless(np.ascontiguousarray(grey), threshold)
+
+
+def _window_radii(cost_window) -> tuple[int, int]:
+    try:
+        w, h = (int(v) for v in cost_window)
+    except (TypeError, ValueError):
+        raise StereoError(f"cost_window must be (width, height), got {cost_window!r}") from None
+    if w < 1 or h < 1 or w % 2 == 0 or h % 2 == 0:
+        raise StereoError(f"cost_window sides must be odd and >= 1, got {cost_window!r}")
+    return w // 2, h // 2
+
+
+def _hidden_by_nearer(disp: np.ndarray, margin: float) -> np.ndarray:
+    """Left pixels that a nearer pixel of the same map hides in the right view.
+
+    ``x - d(x)`` is the pixel's right-image position; it is hidden when that lies at least
+    ``margin`` pixels right of the leftmost right-image position of the pixels to its right
+    (``margin = 1`` tolerates the one-pixel ties of slanted surfaces). NaN takes no part.
+    """
+    H, W = disp.shape
+    xr = np.arange(W, dtype=np.float32)[None, :] - disp
+    xr = np.where(np.isnan(xr), np.float32(np.inf), xr)
+    lowest = np.minimum.accumulate(xr[:, ::-1], axis=1)[:, ::-1]  # min over x' >= x
+    right_of = np.concatenate([lowest[:, 1:], np.full((H, 1), np.inf, np.float32)], axis=1)
+    return xr >= right_of + margin
+
+
+def _unsupported(disp: np.ndarray, flat: np.ndarray, tolerance: float) -> np.ndarray:
+    """Flat pixels whose disparity their row's textured surroundings do not confirm.
+
+    A flat pixel is kept only when the nearest textured pixels with a disparity to its left
+    and to its right on the same row both exist, differ by at most ``tolerance`` plus
+    FLAT_SLOPE per pixel between them, and its disparity lies between theirs (+-
+    ``tolerance``): a plain wall between two edges of the same surface, not a gap or a
+    background that the programme had to invent a disparity for.
+    """
+    # transposed, so that the running maxima/minima along a row run down contiguous columns
+    dT = np.ascontiguousarray(disp.T)
+    W, H = dT.shape
+    finite = np.isfinite(dT)
+    anchor = ~np.ascontiguousarray(flat.T) & finite
+    cols = np.broadcast_to(np.arange(W, dtype=np.int32)[:, None], (W, H))
+    none_l, none_r = np.int32(-1), np.int32(W)
+    # nearest anchor on each side, and where the run of finite pixels ends on each side
+    left = np.maximum.accumulate(np.where(anchor, cols, none_l), axis=0)
+    right = np.minimum.accumulate(np.where(anchor, cols, none_r)[::-1], axis=0)[::-1]
+    start = np.maximum.accumulate(np.where(finite, none_l, cols), axis=0)
+    stop = np.minimum.accumulate(np.where(finite, none_r, cols)[::-1], axis=0)[::-1]
+    has_left, has_right = left > start, right < stop
+    left = np.where(has_left, left, cols)
+    right = np.where(has_right, right, cols)
+    flat_d, lane = dT.ravel(), np.arange(H, dtype=np.int32)[None, :]
+    nan = np.float32(np.nan)
+    d_left = np.where(has_left, flat_d.take(left * np.int32(H) + lane), nan)
+    d_right = np.where(has_right, flat_d.take(right * np.int32(H) + lane), nan)
+    # a pixel squeezed between the run's end and an anchor within a texture window of it
+    # needs that anchor only
+    near = 2 * TEXTURE_WINDOW
+    d_left = np.where(~has_left & (right - start <= near), d_right, d_left)
+    d_right = np.where(~has_right & (stop - left <= near), d_left, d_right)
+    with np.errstate(invalid="ignore"):
+        span = tolerance + FLAT_SLOPE * (right - left)  # a slanted surface may change
+        ok = (np.abs(d_left - d_right) <= span) & (
+            dT >= np.fmin(d_left, d_right) - tolerance) & (
+            dT <= np.fmax(d_left, d_right) + tolerance)
+    ok = ok.T
+    return flat & ~ok
+
+
+def _textureless(grey: np.ndarray, threshold: float) -> np.ndarray:
+    """Pixels whose mean absolute horizontal gradient over the texture window is below
+    ``threshold`` grey levels per pixel (Sobel / 8 = central difference, smoothed)."""
+    gx = np.abs(cv2.Sobel(grey, cv2.CV_32F, 1, 0, ksize=3)) * np.float32(1 / 8)
+    return cv2.blur(gx, (TEXTURE_WINDOW, TEXTURE_WINDOW)) < threshold
+
+
+def _remove_speckles(disp: np.ndarray, size: int, max_diff: float) -> None:
+    """NaN on small regions of similar disparity (in place; OpenCV's filterSpeckles on a
+    1/16-pixel int16 copy)."""
+    ok = np.isfinite(disp)
+    fixed = np.full(disp.shape, -1, np.int16)
+    fixed[ok] = np.rint(disp[ok] * 16).astype(np.int16)
+    cv2.filterSpeckles(fixed, -1, int(size), int(round(max_diff * 16)))
+    disp[fixed < 0] = np.nan
+
+
+def _clip_to_window(disp: np.ndarray, min_disparity: int, max_disparity: int) -> np.ndarray:
+    """Sub-pixel steps may leave the searched window by a fraction: clamp them back."""
+    np.clip(disp, min_disparity, min_disparity + max_disparity, out=disp)
     return disp
 
 
 def _match(left, right, lmask, rmask, *, dmin, nd, occ, rew, combine_max, mode, threads,
-           postprocess):
-    """Scanline matching (+ postprocessing) -> int32 window indices, -1 = no match."""
+           rx, ry, slant, aggregated, paper_postprocess, textured=None):
+    """Scanline matching (+ the paper's postprocessing) -> ``(index, state)``: int32 window
+    indices (-1 = no match) and the states of :mod:`armstereo.reconstruct.birchfield.dp_pruned`."""
     lm = np.ascontiguousarray(left)
     rm = np.ascontiguousarray(right)
-    idx, state = match_image(lm, rm, np.ascontiguousarray(lmask), np.ascontiguousarray(rmask),
-                             dmin, nd, occ, rew, combine_max=combine_max, mode=mode,
-                             threads=threads)
+    lk, rk = np.ascontiguousarray(lmask), np.ascontiguousarray(rmask)
+    if aggregated or (mode == DP_EXACT and not combine_max and lm.shape[2] == 1):
+        out = match_image_aggregated(lm[:, :, 0], rm[:, :, 0], lk, rk, dmin, nd, occ, rew, rx,
+                                     ry, slant=slant, textured=textured, threads=threads)
+        idx, state = out["disp"], out["state"]
+    else:
+        idx, state = match_image(lm, rm, lk, rk, dmin, nd, occ, rew, combine_max=combine_max,
+                                 mode=mode, threads=threads)
     # The dense map (border strip and occlusions filled as in the reference code) feeds the
     # postprocessing; pixels without a possible partner are removed afterwards.
-    if postprocess:
+    if paper_postprocess:
         idx = _postprocess(idx, lm, nd)
     idx[state >= _dp.BORDER] = -1
-    return idx
+    return idx, state
 
 
 def compute_disparity(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
@@ -228,7 +446,7 @@ def _grey(img: np.ndarray) -> np.ndarray:
 
 def _check_options(**choices: str) -> None:
     allowed = {"color": COLOR_MODES, "subpixel": SUBPIXEL_MODES, "search": SEARCH_MODES,
-               "occlusions": OCCLUSION_MODES}
+               "occlusions": OCCLUSION_MODES, "postprocess": POSTPROCESS_MODES}
     for name, value in choices.items():
         if value not in allowed[name]:
             raise StereoError(f"{name}={value!r} is not one of {', '.join(allowed[name])}")

@@ -16,7 +16,8 @@ Colour rows (``C > 1``) combine the per-channel values by their sum or their max
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from armstereo.reconstruct.birchfield.jit import njit
 
 INF = 1 << 29  # cost of an impossible node; sums of two stay below 2**31
 

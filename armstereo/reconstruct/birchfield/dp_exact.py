@@ -27,10 +27,10 @@ caller keeps rows within that bound (:func:`max_exact_width`).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from armstereo.reconstruct.birchfield.cost import INF, channel_costs
 from armstereo.reconstruct.birchfield.dp_pruned import C0, NO_VARIATION_PENALTY
+from armstereo.reconstruct.birchfield.jit import njit
 
 VALID_BELOW = INF // 2  # real path costs stay far below this; sums involving INF stay above
 EXACT_BELOW = 1 << 24  # float32 holds every integer below this exactly

@@ -23,9 +23,9 @@ miss the optimum. ``prune=False`` is the exact O(n nd^2) programme, the test ora
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from armstereo.reconstruct.birchfield.cost import INF
+from armstereo.reconstruct.birchfield.jit import njit
 
 C0 = 600  # reference code's start offset; keeps costs positive, does not change the optimum
 NO_VARIATION_PENALTY = 1000  # doubled units, as in the reference code: effectively forbids

@@ -16,7 +16,6 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numba
 import numpy as np
-from numba import njit
 
 from armstereo.reconstruct.birchfield.cost import (
     INF,
@@ -27,6 +26,7 @@ from armstereo.reconstruct.birchfield.cost import (
 )
 from armstereo.reconstruct.birchfield.dp_exact import scanline_dp_exact
 from armstereo.reconstruct.birchfield.dp_pruned import BORDER, INVALID, decode_matches, scanline_dp
+from armstereo.reconstruct.birchfield.jit import njit
 
 DP_EXACT = 0  # exact O(n nd) programme (default)
 DP_PRUNED = 1  # reference code's pruned search

@@ -22,9 +22,9 @@ copies. The mode filters read the previous pass's output (not in place).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from armstereo.reconstruct.birchfield.cost import VARIATION_THRESHOLD
+from armstereo.reconstruct.birchfield.jit import njit
 
 TH_RELIABLE = 14  # reference code's reliability threshold ...
 ALPHA = 0.15  # ... and its tolerance

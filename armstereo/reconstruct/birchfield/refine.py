@@ -7,7 +7,8 @@ none) of the left image; ``x_right = x_left - d``.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from armstereo.reconstruct.birchfield.jit import njit
 
 
 @njit(cache=True)

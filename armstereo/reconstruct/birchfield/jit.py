@@ -1,0 +1,41 @@
+"""``njit`` for the matcher's kernels: cached on disk where possible, compiled in memory if not.
+
+numba's ``cache=True`` raises "no locator available" when neither the package's
+``__pycache__`` nor the user's cache directory (``NUMBA_CACHE_DIR``, ``~/.cache``) is
+writable, e.g. a read-only install with a read-only home; importing the matcher (and so every
+CLI command) would then fail. This decorator falls back to ``cache=False`` for every kernel
+and says so once: the commands still work, each process compiling what it uses.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numba
+
+log = logging.getLogger(__name__)
+
+_cache_ok: bool | None = None  # None until the first kernel has tried
+
+
+def njit(*args, **options):
+    """``numba.njit`` with ``cache=True`` unless no cache location is writable."""
+    if args and callable(args[0]):
+        return _compile(args[0], options)
+    return lambda func: _compile(func, options)
+
+
+def _compile(func, options):
+    global _cache_ok
+    if _cache_ok is not False and options.get("cache", False):
+        try:
+            dispatcher = numba.njit(**options)(func)
+            _cache_ok = True
+            return dispatcher
+        except RuntimeError as err:  # numba: "cannot cache function ...: no locator available"
+            if "no locator available" not in str(err):
+                raise
+            _cache_ok = False
+            log.warning("no writable cache directory for the matcher's compiled kernels (set "
+                        "NUMBA_CACHE_DIR to one); compiling them in memory, every run")
+    return numba.njit(**dict(options, cache=False))(func)
