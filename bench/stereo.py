@@ -216,6 +216,8 @@ VARIANTS = {
     "occlusion_penalty=35": dict(occlusion_penalty=35),
     "match_reward=3": dict(match_reward=3),
     "color=sum (single-pixel kernels)": dict(color="sum"),
+    "prefilter=highpass (gain 2)": dict(prefilter="highpass"),
+    "prefilter=highpass, gain 1": dict(prefilter="highpass", prefilter_gain=1.0),
 }
 
 

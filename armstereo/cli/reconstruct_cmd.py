@@ -13,6 +13,7 @@ from armstereo.io.files import output_folder
 from armstereo.reconstruct.outputs import write_outputs
 from armstereo.reconstruct.pipeline import reconstruct_pair
 from armstereo.reconstruct.stereo import METHODS
+from armstereo.reconstruct.window import check_range
 from armstereo.recording import Recording
 
 log = logging.getLogger("armstereo.reconstruct")
@@ -79,6 +80,7 @@ def _select(rec: Recording, which: str) -> list:
 def run(args: argparse.Namespace) -> int:
     path = args.recording
     max_disparity = _max_disparity(args.max_disparity)
+    check_range(args.near, args.far)  # before any pair is read or checked
     rec = Recording.open(path)
     pairs = _select(rec, args.pair)
     out = Path(args.out) if args.out else path.with_name(f"{path.stem}_reconstruction")

@@ -76,6 +76,9 @@ SLANT_PENALTY = 10.0  # grey levels, for a one-pixel disparity step
 TEXTURE_THRESHOLD = 1.0  # grey levels per pixel, mean |horizontal gradient| over the window
 TEXTURE_WINDOW = 5
 REWARD_TEXTURE = 0.5  # grey levels per pixel: matching flatter pixels earns no reward
+PREFILTER_MODES = ("none", "highpass")
+PREFILTER_SIGMA = 8.0  # px: slower brightness changes than this are removed
+PREFILTER_GAIN = 2.0  # contrast of what is left (the penalties are in grey levels)
 SPECKLE_SIZE = 100  # pixels
 SPECKLE_RANGE = 2.0  # pixels of disparity
 MEDIAN_SIZE = 5
@@ -105,7 +108,9 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
                slant_penalty: float | None = SLANT_PENALTY,
                texture_threshold: float = TEXTURE_THRESHOLD,
                speckle_size: int = SPECKLE_SIZE, speckle_range: float = SPECKLE_RANGE,
-               reward_texture: float = REWARD_TEXTURE) -> np.ndarray:
+               reward_texture: float = REWARD_TEXTURE, prefilter: str = "none",
+               prefilter_sigma: float = PREFILTER_SIGMA,
+               prefilter_gain: float = PREFILTER_GAIN) -> np.ndarray:
     """Birchfield-Tomasi pixel-to-pixel stereo (ICCV'98), made robust for real photographs.
 
     The algorithm: the sampling-insensitive symmetric dissimilarity, one dynamic programme per
@@ -144,6 +149,10 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
     - ``lr_check``: also match right-to-left (mirrored pair) and reject disparities that differ
       by more than one pixel. Matching takes twice as long.
     - ``threads``: rows are matched on this many threads (default ``numba.get_num_threads()``).
+    - ``prefilter``: ``"highpass"`` matches ``prefilter_gain * (I - G * I) + 128`` of each
+      grey image (``G``: a Gaussian of ``prefilter_sigma`` px, normalised over the valid
+      pixels), so brightness that changes slowly across the image (vignetting, exposure) does
+      not shift matches; ``"none"`` matches the intensities as the paper does. Grey only.
 
     Every returned disparity lies in ``[min_disparity, min_disparity + max_disparity]``. Left
     pixels whose partner would lie left of the right image (the strip ``x < d``) are NaN.
@@ -169,6 +178,15 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
         rx, ry, slant_penalty = 0, 0, None
     aggregated = (rx, ry) != (0, 0) or slant_penalty is not None
     gl, gr = _grey(left), _grey(right)
+    flat = _textureless(gl, texture_threshold) if texture_threshold > 0 else None
+    textured_l, textured_r = _rewarded(gl, reward_texture), _rewarded(gr, reward_texture)
+    if prefilter not in PREFILTER_MODES:
+        raise StereoError(f"prefilter={prefilter!r} is not one of {', '.join(PREFILTER_MODES)}")
+    if prefilter == "highpass":
+        if color != "gray":
+            raise StereoError('prefilter="highpass" works on grey matching only (color="gray")')
+        gl = _highpass(gl, lmask, prefilter_sigma, prefilter_gain)
+        gr = _highpass(gr, rmask, prefilter_sigma, prefilter_gain)
     ml, mr = (gl[:, :, None], gr[:, :, None]) if color == "gray" else (left, right)
     units = 2 * (ml.shape[2] if color == "sum" else 1)  # doubled units, summed channels
     occ = int(round(occlusion_penalty * units))
@@ -181,8 +199,7 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
                   rx=rx, ry=ry, slant=-1 if slant_penalty is None else int(round(
                       slant_penalty * units)), aggregated=aggregated,
                   paper_postprocess=postprocess == "paper")
-    flat = _textureless(gl, texture_threshold) if texture_threshold > 0 else None
-    idx, state = _match(ml, mr, lmask, rmask, textured=_rewarded(gl, reward_texture), **params)
+    idx, state = _match(ml, mr, lmask, rmask, textured=textured_l, **params)
     if subpixel == "fast":
         offset = _gradient_step(gl, gr, idx, min_disparity)
     else:
@@ -197,7 +214,7 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
         reject |= _hidden_by_nearer(np.where(reject, np.nan, dense), OCCLUSION_MARGIN)
     if lr_check:
         idx_r, state_r = _match(mr[:, ::-1], ml[:, ::-1], rmask[:, ::-1], lmask[:, ::-1],
-                                   textured=_rewarded(gr[:, ::-1], reward_texture), **params)
+                                   textured=textured_r[:, ::-1], **params)
         # mirrored, swapped pair: its "left" is the mirrored right image
         idx_r = np.where(state_r >= _dp.BORDER, -1, idx_r)
         idx_r = np.ascontiguousarray(idx_r[:, ::-1])
@@ -215,6 +232,21 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
     if speckle_size > 0:
         _remove_speckles(disp, speckle_size, speckle_range)
     return _clip_to_window(disp, min_disparity, max_disparity)
+
+
+def _highpass(grey: np.ndarray, mask: np.ndarray, sigma: float, gain: float) -> np.ndarray:
+    """``gain * (I - local mean) + 128`` as uint8; the local mean is a Gaussian average over
+    the valid pixels only, so a rectification's black fill does not darken the border."""
+    if not (sigma > 0 and gain > 0):
+        raise StereoError(f"prefilter_sigma ({sigma}) and prefilter_gain ({gain}) must be > 0")
+    g = grey.astype(np.float32)
+    w = mask.astype(np.float32)
+    num = cv2.GaussianBlur(g * w, (0, 0), sigma)
+    den = cv2.GaussianBlur(w, (0, 0), sigma)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.where(den > 1e-3, num / den, g)
+    out = np.float32(gain) * (g - mean) + np.float32(128)
+    return np.clip(np.rint(out), 0, 255).astype(np.uint8)
 
 
 def _gradient_step(left: np.ndarray, right: np.ndarray, idx: np.ndarray,

@@ -11,10 +11,11 @@ import cv2
 import numpy as np
 import pytest
 
-from armstereo import stereo
 from armstereo.cli.main import main
+from armstereo.errors import StereoError
 from armstereo.evaluation.disparity import evaluate_disparity
 from armstereo.io.disparity import read_disparity
+from armstereo.reconstruct import stereo
 from armstereo.reconstruct.birchfield import jit
 from armstereo.reconstruct.birchfield.aggregate import (
     cost_divisor,
@@ -248,3 +249,27 @@ def test_middlebury_bad2_below_the_measured_bound(name):
     scores = evaluate_disparity(disp, gt, mask, exclude_left=n)
     assert scores["bad2"] < BAD2_BOUNDS[name]
     assert scores["median_error"] < 0.3
+
+
+def test_highpass_prefilter_undoes_a_brightness_gradient_between_the_views():
+    """Vignetting or an exposure ramp that differs between the views shifts raw-intensity
+    matches; the high-pass prefilter removes slow brightness changes before matching."""
+    rng = np.random.default_rng(5)
+    H, W, d0 = 80, 200, 9
+    tex = cv2.GaussianBlur(rng.normal(0, 1, (H, W + d0)).astype(np.float32), (0, 0), 1.5)
+    tex = 128 + 6 * tex / tex.std()  # a faint texture, as on a plain table top
+    left, right = tex[:, :W].copy(), tex[:, d0:].copy()
+    ramp = np.linspace(-25, 25, W, dtype=np.float32)[None, :]  # the views' gains differ
+    left8 = np.clip(np.rint(left + ramp), 0, 255).astype(np.uint8)
+    right8 = np.clip(np.rint(right - ramp), 0, 255).astype(np.uint8)
+    inner = (slice(5, -5), slice(30, -10))
+
+    def share_right(disp):
+        return float(np.mean(np.abs(disp[inner] - d0) < 1.0))
+
+    plain = birchfield(left8, right8, 20)
+    filtered = birchfield(left8, right8, 20, prefilter="highpass")
+    assert share_right(filtered) > 0.9
+    assert share_right(filtered) > share_right(plain) + 0.2
+    with pytest.raises(StereoError, match="prefilter"):
+        birchfield(left8, right8, 20, prefilter="sharpen")
