@@ -5,8 +5,10 @@ Cases (each a fresh mock scan of the table scene with the UR5e and the default c
 - ``tuning``: ring:12 at 55 deg elevation, radius 0.45 m, baseline 60 mm, camera noise 1 grey
   level, scene seed 0. The fusion defaults (bilinear depth lookup, truncation 4 voxels, two-view
   cloud rule) were chosen on this one.
-- ``held-out`` (``--held-out``): sphere:12 from 40 deg, radius 0.5 m, camera noise 2, scene
-  seed 7 (other textures), same defaults.
+- ``held-out`` (``--held-out``): sphere:12 from 45 deg, radius 0.5 m, camera noise 2, scene
+  seed 7 (other textures), same defaults. (From 40 deg, as first measured, ``armstereo scan``
+  refuses the tour: the lowest viewpoint, near the arm's base, is reachable only by a joint
+  move through the shoulder singularity.)
 
 For each: ``scan`` (plan + capture, simulated arm time is not waited for), ``fuse`` (the whole
 ``fuse_recording`` with scoring, default worker count) and the accuracy of the model, of the
@@ -50,7 +52,7 @@ TARGET = (SCENE_CENTER[0], SCENE_CENTER[1], 0.03)
 CASES = {
     "tuning": {"views": "ring:12", "elevation_deg": 55.0, "radius": 0.45, "noise": 1.0,
                "scene_seed": 0},
-    "held-out": {"views": "sphere:12", "elevation_deg": 40.0, "radius": 0.5, "noise": 2.0,
+    "held-out": {"views": "sphere:12", "elevation_deg": 45.0, "radius": 0.5, "noise": 2.0,
                  "scene_seed": 7},
 }
 BASELINE_M = 0.06

@@ -86,9 +86,9 @@ def test_unreachable_target_is_refused_before_anything_moves(tmp_path):
 def test_a_tour_leaving_the_workspace_between_viewpoints_is_refused(tmp_path, monkeypatch):
     moves = _count_moves(monkeypatch)
     out = tmp_path / "box.mcap"
-    box = Workspace.parse("-0.85,0.85,-0.22,0.85,0.05,0.85")  # see test_tour.py
+    box = Workspace.parse("-0.46,0.85,-0.85,0.85,0.05,0.85")  # see test_tour.py
     with pytest.raises(PreflightError, match="'workspace' failed.*viewpoint . -> viewpoint"):
-        record_scan(out, ScanRequest(target=tuple(TARGET), views="ring:2", workspace=box),
+        record_scan(out, ScanRequest(target=tuple(TARGET), views="ring:4", workspace=box),
                     small_model(), progress=None)
     assert not out.exists() and moves == []
 

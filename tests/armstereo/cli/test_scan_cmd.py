@@ -36,8 +36,8 @@ def test_scan_then_fuse(tmp_path, capsys):
 
 @pytest.mark.parametrize("args,code,text", [
     (["--target", "2.5,0,0"], 3, "'viewpoints' failed: none of the"),
-    (["--workspace=-0.85,0.85,-0.22,0.85,0.05,0.85"], 3,
-     "'workspace' failed: flange at"),
+    (["--views", "ring:4", "--workspace=-0.46,0.85,-0.85,0.85,0.05,0.85"], 3,
+     "'workspace' failed: camera at"),
     (["--views", "ring:0"], 2, "argument --views"),
     (["--views", "auto"], 2, "argument --views"),
     (["--target", "1,2"], 2, "argument --target"),
