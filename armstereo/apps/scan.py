@@ -8,11 +8,15 @@ the same pre-flight rule (nothing moves unless every check of the tour passes), 
 stop-on-error (any error ends with the arm told to stop), the same crash-safe recording (a
 fault keeps every complete pair) and the same kinematics choice and metadata as ``capture``.
 
-Recording metadata (besides capture's): ``kind`` = ``scan``, ``views`` (the layout),
+``--views auto:N`` chooses up to N viewpoints while scanning (greedy next-best view,
+:mod:`armstereo.fusion.nbv`; every move is still checked before the arm makes it).
+
+Recording metadata (besides capture's): ``kind`` = ``scan``, ``views`` (the layout as asked),
 ``target_m`` (``x,y,z``, base frame), ``radius_m``, ``elevation_deg``, ``baseline_m``,
-``direction`` = ``x``, ``pairs`` (viewpoints planned) and ``scan_viewpoints`` (JSON list in tour
-order: ``viewpoint``, ``azimuth_deg``, ``elevation_deg``, ``roll_deg``, ``T_base_camera``
-row-major 4x4). Each pair event carries its ``viewpoint``.
+``direction`` = ``x``, ``pairs`` (viewpoints planned; for ``auto:N``, N) and
+``scan_viewpoints`` (JSON list in tour order, for ``auto:N`` the candidates: ``viewpoint``,
+``azimuth_deg``, ``elevation_deg``, ``roll_deg``, ``T_base_camera`` row-major 4x4). Each pair
+event carries its ``viewpoint``.
 """
 
 from __future__ import annotations
@@ -22,7 +26,7 @@ import logging
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -41,6 +45,9 @@ from armstereo.capture.session import capture_to_file, confirm_live_motion
 from armstereo.capture.tour import ScanTour, plan_tour
 from armstereo.devices import MotionLimits
 from armstereo.kinematics import ArmModel
+
+if TYPE_CHECKING:
+    from armstereo.fusion.nbv import AutoTour
 
 log = logging.getLogger(__name__)
 
@@ -75,22 +82,33 @@ class ScanOutcome:
     """What :func:`record_scan` did: the checked tour, what was recorded (None for a dry run),
     the recording's path and where the kinematics came from."""
 
-    tour: ScanTour
+    tour: ScanTour | AutoTour
     result: CaptureResult | None
     out: Path
     kinematics_source: str
 
 
-def plan_scan_tour(model: ArmModel, q_start: np.ndarray, request: ScanRequest) -> ScanTour:
-    """Viewpoints of ``request`` from joints ``q_start`` (rad), checked as one tour."""
+def plan_scan_tour(model: ArmModel, q_start: np.ndarray, request: ScanRequest
+                   ) -> ScanTour | AutoTour:
+    """Viewpoints of ``request`` from joints ``q_start`` (rad), checked as one tour; for
+    ``auto:N`` the candidates, each checked (:mod:`armstereo.fusion.nbv`)."""
+    from armstereo.fusion.nbv import candidate_layout, parse_auto
+
     settings = request.capture_settings()
-    scan = plan_scan(model, q_start, request.target, views=request.views, radius=request.radius,
-                     elevation_deg=request.elevation_deg, baseline=request.baseline,
+    budget = parse_auto(request.views)
+    scan = plan_scan(model, q_start, request.target,
+                     views=request.views if budget is None else candidate_layout(budget),
+                     radius=request.radius, elevation_deg=request.elevation_deg,
+                     baseline=request.baseline,
                      settings=ScanSettings(joint_margin=settings.joint_margin,
                                            min_sigma=settings.min_sigma,
                                            path_step=settings.path_step,
                                            workspace=request.workspace))
-    return plan_tour(model, scan, settings)
+    if budget is None:
+        return plan_tour(model, scan, settings)
+    from armstereo.fusion.nbv import plan_auto
+
+    return plan_auto(model, scan, settings, budget)
 
 
 def record_scan(out: str | Path, request: ScanRequest, model: ArmModel, *, arm: str = "mock",
@@ -130,8 +148,10 @@ def record_scan(out: str | Path, request: ScanRequest, model: ArmModel, *, arm: 
         with backends.build_camera(camera, camera_config, model, device) as cam:
             meta = {**model_metadata(model), **(metadata or {}), **scan_metadata(tour, request),
                     **kinematics.metadata()}
+            observer = tour.observer(cam.intrinsics) if hasattr(tour, "observer") else None
             result = capture_to_file(device, cam, model, tour, out, meta,
-                                     image_format=request.image_format, progress=progress)
+                                     image_format=request.image_format, progress=progress,
+                                     on_view=observer)
     return ScanOutcome(tour, result, out, kinematics.source)
 
 
@@ -143,10 +163,11 @@ def scan_metadata(tour: ScanTour, request: ScanRequest) -> dict[str, str]:
                    "T_base_camera": np.round(v.T_base_camera, 9).reshape(-1).tolist()}
                   for v in scan.views]
     lim = request.limits
-    return {"kind": "scan", "views": str(scan.layout),
+    return {"kind": "scan", "views": request.views,
             "target_m": ",".join(f"{v:.6g}" for v in scan.target),
             "radius_m": repr(scan.radius), "elevation_deg": repr(scan.elevation_deg),
-            "baseline_m": repr(scan.baseline), "direction": "x", "pairs": str(len(scan.views)),
+            "baseline_m": repr(scan.baseline), "direction": "x",
+            "pairs": str(getattr(tour, "budget", len(scan.views))),
             "speed_m_s": repr(lim.linear_speed), "acceleration_m_s2": repr(lim.linear_acceleration),
             "joint_speed_rad_s": repr(lim.joint_speed),
             "joint_acceleration_rad_s2": repr(lim.joint_acceleration),

@@ -44,7 +44,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    default=DEFAULT_RADIUS_M,
                    help=f"camera distance from the target (m, default {DEFAULT_RADIUS_M})")
     p.add_argument("--views", type=_views, default=DEFAULT_VIEWS,
-                   help=f"ring:N, sphere:N or grid:RxC (default {DEFAULT_VIEWS})")
+                   help=f"ring:N, sphere:N, grid:RxC, or auto:N (up to N viewpoints chosen "
+                   f"while scanning: greedy next-best view; default {DEFAULT_VIEWS})")
     p.add_argument("--elevation", type=args_.fraction(0.0, 90.0), default=DEFAULT_ELEVATION_DEG,
                    help=f"elevation above the target's horizontal plane (deg, default "
                    f"{DEFAULT_ELEVATION_DEG:g}; sphere and grid go from it up)")
@@ -75,8 +76,11 @@ def _point(text: str) -> tuple[float, float, float]:
 
 
 def _views(text: str) -> str:
+    from armstereo.fusion.nbv import parse_auto
+
     try:
-        parse_views(text)
+        if parse_auto(text) is None:
+            parse_views(text)
     except ConfigError as err:
         raise argparse.ArgumentTypeError(str(err).removeprefix("--views ")) from None
     return text.strip().lower()
@@ -126,4 +130,9 @@ def _print_summary(outcome: ScanOutcome) -> None:
         print(f"  pair {p.pair} (views {p.left_view},{p.right_view}) viewpoint {p.viewpoint}: "
               f"baseline commanded {p.commanded_m * 1000:.2f} mm, achieved "
               f"{p.achieved_m * 1000:.3f} mm ({err:+.3f} mm)")
+    chosen = getattr(outcome.tour, "chosen", None)
+    if chosen is not None:
+        print("auto: " + ", ".join(f"viewpoint {c['viewpoint']} ({c['gain_rays']} rays saw "
+                                    "unknown space)" for c in chosen)
+              + f"; stopped: {outcome.tour.stop_reason}")
     print(f"next: armstereo fuse {out} --out {Path(out).with_suffix('')}_fused")
