@@ -54,7 +54,10 @@ class ScanDemoOptions:
 
     def check(self) -> None:
         """ConfigError for an option out of range (before a folder is made)."""
-        parse_views(self.views)
+        from armstereo.fusion.nbv import parse_auto
+
+        if parse_auto(self.views) is None:
+            parse_views(self.views)
         if not 0 < self.voxel <= 0.1:
             raise ConfigError(f"--voxel must be in (0, 0.1] m, got {self.voxel}")
 

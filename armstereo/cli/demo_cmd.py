@@ -45,7 +45,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="scan the scene from several viewpoints (armstereo scan), fuse the pairs "
                    "(armstereo fuse), render the mesh and score it")
     p.add_argument("--views", default=None,
-                   help=f"--scan only: viewpoint layout (default {ScanDemoOptions.views})")
+                   help=f"--scan only: viewpoint layout, as armstereo scan takes it (default "
+                   f"{ScanDemoOptions.views})")
     p.set_defaults(func=run)
 
 
