@@ -107,6 +107,40 @@ class CaptureSettings:
 
 
 @dataclass(frozen=True)
+class PairStep:
+    """A stereo pair to record after a shot: views ``left_view`` and ``right_view``, the
+    baseline commanded (m) along the camera-frame ``direction`` label, and the scan viewpoint
+    the pair was shot from (None for a single-line capture)."""
+
+    pair: int
+    left_view: int
+    right_view: int
+    commanded_m: float
+    direction: str
+    viewpoint: int | None = None
+
+
+@dataclass(frozen=True)
+class Step:
+    """One step of a checked capture: a move, then (optionally) a shot, then (optionally) a
+    pair event. ``move`` is ``none``, ``linear`` (``target`` = T_base_flange, base frame, at
+    the plan's linear speed caps) or ``joints`` (``target`` = joints, rad, at its joint speed
+    caps); ``duration_s`` is what the move may take by the plan (the runner adds a margin for
+    its timeout); ``view`` is the view to shoot after it (None: no
+    shot, e.g. the way back); ``say`` is the progress line shown before the move."""
+
+    move: str
+    target: np.ndarray | None
+    duration_s: float
+    view: int | None = None
+    pair: PairStep | None = None
+    say: str = ""
+
+
+MOVES = ("none", "linear", "joints")
+
+
+@dataclass(frozen=True)
 class Check:
     """One pre-flight check: its name, whether it passed, and the numbers behind it."""
 
@@ -137,6 +171,19 @@ class CapturePlan:
             if not c.ok:
                 raise PreflightError(f"pre-flight check '{c.name}' failed: {c.detail}; "
                                      "nothing moved")
+
+    def steps(self) -> list[Step]:
+        """The capture as steps: shoot view 0 where the arm stands, then per pair a straight
+        move by the baseline and a shot, then straight back to view 0."""
+        # Each move may take as long as the whole plan (generous: a stalled move is caught).
+        s, timeout = self.settings, self.duration_s
+        out = [Step("none", None, timeout, view=0)]
+        for k in range(1, len(self.T_base_flange)):
+            out.append(Step("linear", self.T_base_flange[k], timeout, view=k,
+                            pair=PairStep(k - 1, k - 1, k, s.baseline, s.direction_label),
+                            say=f"moving to view {k}"))
+        out.append(Step("linear", self.T_base_flange[0], timeout, say="returning to the start"))
+        return out
 
     def describe(self) -> list[str]:
         """Human-readable lines: motion, views and checks."""

@@ -10,19 +10,20 @@ reading, so a recording shows whether our kinematics are the arm's.
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
 
-from armstereo.capture.plan import CapturePlan
+from armstereo.capture.plan import CaptureSettings, PairStep, Step
 from armstereo.devices import Arm, Camera
+from armstereo.frame import Frame
 from armstereo.kinematics import ArmModel
 
 log = logging.getLogger(__name__)
 
 MOVE_TIMEOUT_MARGIN_S = 10.0  # on top of the planned duration of a move
-
 
 def model_metadata(model: ArmModel) -> dict[str, str]:
     """The recording metadata that identifies the software, arm model and camera mount: what
@@ -38,13 +39,15 @@ def model_metadata(model: ArmModel) -> dict[str, str]:
 
 @dataclass
 class PairResult:
-    """Commanded and achieved camera baseline of one pair (m)."""
+    """Commanded and achieved camera baseline of one pair (m), and the scan viewpoint it was
+    shot from (None for a single-line capture)."""
 
     pair: int
     left_view: int
     right_view: int
     commanded_m: float
     achieved_m: float
+    viewpoint: int | None = None
 
 
 @dataclass
@@ -55,33 +58,46 @@ class CaptureResult:
     pairs: list[PairResult] = field(default_factory=list)
 
 
-def run_capture(arm: Arm, camera: Camera, model: ArmModel, plan: CapturePlan, writer,
+class CapturePlanLike(Protocol):
+    """What :func:`run_capture` needs of a checked plan (a :class:`CapturePlan`, or a scan's
+    :class:`armstereo.capture.tour.ScanTour`)."""
+
+    settings: CaptureSettings
+
+    def require_ok(self) -> None: ...
+
+    def steps(self) -> Iterable[Step]: ...
+
+
+# Called after every recorded view with (view index, the frame, T_base_camera in base).
+ViewHook = Callable[[int, Frame, np.ndarray], None]
+
+
+def run_capture(arm: Arm, camera: Camera, model: ArmModel, plan: CapturePlanLike, writer,
                 progress: Callable[[str], None] | None = None,
-                result: CaptureResult | None = None) -> CaptureResult:
-    """Run ``plan`` (already checked) and record every view into ``writer``.
+                result: CaptureResult | None = None, on_view: ViewHook | None = None
+                ) -> CaptureResult:
+    """Run ``plan`` (already checked) step by step and record every view into ``writer``.
 
     On any error the arm is told to stop before the error propagates; what was recorded so far
     stays in the writer (the caller closes it) and is counted in ``result`` if one is passed.
+    ``on_view`` sees every recorded view (e.g. to choose the next viewpoint from it).
     """
     plan.require_ok()
     result = CaptureResult() if result is None else result
-    lim = plan.settings.limits
     writer.write_calibration(camera.intrinsics, arm.clock.now_ns())
-    prev_camera = None
+    cameras: dict[int, np.ndarray] = {}  # view -> camera position (base, m)
     try:
-        for k, T_target in enumerate(plan.T_base_flange):
-            if k > 0:
-                _say(progress, f"moving to view {k}")
-                arm.move_linear(T_target, lim.linear_speed, lim.linear_acceleration,
-                                timeout=_move_timeout(plan))
-            camera_pos = _shoot(arm, camera, model, plan, writer, k)
-            result.views += 1
-            if prev_camera is not None:
-                result.pairs.append(_record_pair(writer, plan, k, prev_camera, camera_pos))
-            prev_camera = camera_pos
-        _say(progress, "returning to the start")
-        arm.move_linear(plan.T_base_flange[0], lim.linear_speed, lim.linear_acceleration,
-                        timeout=_move_timeout(plan))
+        for step in plan.steps():
+            _move(arm, plan, step, progress)
+            if step.view is not None:
+                frame, T_base_camera = _shoot(arm, camera, model, plan, writer, step.view)
+                cameras[step.view] = T_base_camera[:3, 3]
+                result.views += 1
+                if on_view is not None:
+                    on_view(step.view, frame, T_base_camera)
+            if step.pair is not None:
+                result.pairs.append(_record_pair(writer, step.pair, cameras))
         arm.wait_until_steady()
     except BaseException:
         _stop_quietly(arm)
@@ -89,8 +105,27 @@ def run_capture(arm: Arm, camera: Camera, model: ArmModel, plan: CapturePlan, wr
     return result
 
 
-def _shoot(arm: Arm, camera: Camera, model: ArmModel, plan: CapturePlan, writer, k: int):
-    """Settle, grab, read the actual joints and write view ``k``; returns the camera position."""
+def _move(arm: Arm, plan: CapturePlanLike, step: Step,
+          progress: Callable[[str], None] | None) -> None:
+    if step.move == "none":
+        return
+    if step.say:
+        _say(progress, step.say)
+    lim = plan.settings.limits
+    if step.move == "linear":
+        arm.move_linear(step.target, lim.linear_speed, lim.linear_acceleration,
+                        timeout=step.duration_s + MOVE_TIMEOUT_MARGIN_S)
+    elif step.move == "joints":
+        arm.move_joints(step.target, lim.joint_speed, lim.joint_acceleration,
+                        timeout=step.duration_s + MOVE_TIMEOUT_MARGIN_S)
+    else:
+        raise ValueError(f"unknown move kind {step.move!r}")
+
+
+def _shoot(arm: Arm, camera: Camera, model: ArmModel, plan: CapturePlanLike, writer, k: int
+           ) -> tuple[Frame, np.ndarray]:
+    """Settle, grab, read the actual joints and write view ``k``; returns the frame and the
+    camera pose (T_base_camera, FK of the actual joints)."""
     arm.wait_until_steady()
     arm.clock.sleep(plan.settings.settle_s)
     arm.require_ok()
@@ -101,21 +136,18 @@ def _shoot(arm: Arm, camera: Camera, model: ArmModel, plan: CapturePlan, writer,
     writer.write_view(k, frame, q, model.joint_names, T_base_flange, model.mount.T_flange_camera,
                       settle_s=plan.settings.settle_s, controller_T_base_flange=T_controller)
     log.debug("view %d recorded at q=%s", k, np.round(q, 5))
-    return (T_base_flange @ model.mount.T_flange_camera)[:3, 3]
+    return frame, T_base_flange @ model.mount.T_flange_camera
 
 
-def _record_pair(writer, plan: CapturePlan, k: int, prev: np.ndarray, cur: np.ndarray):
-    achieved = float(np.linalg.norm(cur - prev))
-    pr = PairResult(k - 1, k - 1, k, plan.settings.baseline, achieved)
+def _record_pair(writer, step: PairStep, cameras: dict[int, np.ndarray]) -> PairResult:
+    achieved = float(np.linalg.norm(cameras[step.right_view] - cameras[step.left_view]))
+    pr = PairResult(step.pair, step.left_view, step.right_view, step.commanded_m, achieved,
+                    step.viewpoint)
     writer.write_pair(pr.pair, pr.left_view, pr.right_view, pr.commanded_m, pr.achieved_m,
-                      plan.settings.direction_label)
+                      step.direction, viewpoint=step.viewpoint)
     log.debug("pair %d: baseline commanded %.2f mm, achieved %.3f mm", pr.pair,
-             pr.commanded_m * 1000, pr.achieved_m * 1000)
+              pr.commanded_m * 1000, pr.achieved_m * 1000)
     return pr
-
-
-def _move_timeout(plan: CapturePlan) -> float:
-    return plan.duration_s + MOVE_TIMEOUT_MARGIN_S
 
 
 def _stop_quietly(arm: Arm) -> None:

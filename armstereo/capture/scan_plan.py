@@ -52,6 +52,7 @@ DEFAULT_BASELINE_M = 0.06
 PATH_STEP_M = 0.005  # IK sample spacing along the baseline move (as capture checks it)
 MAX_SAMPLE_JUMP_RAD = 0.15  # a larger joint jump between path samples is a branch flip
 TWO_OPT_ROUNDS = 50
+FORBIDDEN_LEG_RAD = 1e3  # extra cost of a leg the tour's pre-flight refused
 # Camera rolls about the optical axis tried per viewpoint (deg): the wrist reaches some
 # viewpoints only with the image turned; the baseline stays along the (turned) camera x.
 ROLLS_DEG = (0.0, 180.0, 90.0, -90.0)
@@ -385,13 +386,16 @@ def _joint_distance(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def order_tour(q_start: np.ndarray, q_first: list[np.ndarray],
-               q_last: list[np.ndarray]) -> tuple[list[int], float]:
+               q_last: list[np.ndarray],
+               forbidden: set[tuple[int | None, int | None]] = frozenset()
+               ) -> tuple[list[int], float]:
     """Order views (each entered at ``q_first[i]`` and left at ``q_last[i]``) for a short
     start -> views -> start tour; returns (order, joint travel in rad).
 
     Nearest neighbour from the start, then 2-opt (segment reversal) until no reversal helps.
     Reversing a segment keeps each view's own left-to-right direction; the cost of a leg is
-    the largest single-joint change.
+    the largest single-joint change. ``forbidden`` legs ``(from, to)`` (None = the start) cost
+    FORBIDDEN_LEG_RAD extra, so they are used only where no order avoids them.
     """
     n = len(q_first)
     if n == 0:
@@ -401,7 +405,7 @@ def order_tour(q_start: np.ndarray, q_first: list[np.ndarray],
     def leg(a: int | None, b: int | None) -> float:
         qa = start if a is None else q_last[a]
         qb = start if b is None else q_first[b]
-        return _joint_distance(qa, qb)
+        return _joint_distance(qa, qb) + (FORBIDDEN_LEG_RAD if (a, b) in forbidden else 0.0)
 
     order, left = [], set(range(n))
     current: int | None = None

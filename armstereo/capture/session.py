@@ -12,8 +12,7 @@ import signal
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
-from armstereo.capture.plan import CapturePlan
-from armstereo.capture.run import CaptureResult, run_capture
+from armstereo.capture.run import CapturePlanLike, CaptureResult, ViewHook, run_capture
 from armstereo.devices import Arm, Camera
 from armstereo.errors import ArmstereoError, UserAbort
 from armstereo.kinematics import ArmModel
@@ -39,11 +38,13 @@ def confirm_live_motion(*, live: bool, yes: bool, ask: Callable[[], str | None])
         raise UserAbort("not confirmed; nothing moved")
 
 
-def capture_to_file(arm: Arm, camera: Camera, model: ArmModel, plan: CapturePlan, out: Path,
+def capture_to_file(arm: Arm, camera: Camera, model: ArmModel, plan: CapturePlanLike, out: Path,
                     metadata: dict[str, str], *, image_format: str = "png",
-                    progress: Callable[[str], None] | None = log.info) -> CaptureResult:
+                    progress: Callable[[str], None] | None = log.info,
+                    on_view: ViewHook | None = None) -> CaptureResult:
     """Run the checked ``plan`` into the recording ``out``; the file is finished whatever
-    happens (even SIGTERM). Errors name how many views were kept."""
+    happens (even SIGTERM). Errors name how many views were kept. ``on_view`` is passed to
+    :func:`run_capture`."""
     from armstereo.recording import RecordingWriter
 
     plan.require_ok()  # before the file exists: a refused plan leaves nothing behind
@@ -53,7 +54,8 @@ def capture_to_file(arm: Arm, camera: Camera, model: ArmModel, plan: CapturePlan
     try:
         with sigterm_as_interrupt(), writer:
             try:
-                run_capture(arm, camera, model, plan, writer, progress=progress, result=result)
+                run_capture(arm, camera, model, plan, writer, progress=progress, result=result,
+                            on_view=on_view)
             except ArmstereoError as err:
                 err.args = (f"{err}; {_kept(result, out)}",)
                 raise

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from armstereo import backends
 from armstereo.apps.demo import DEFAULT_BASELINE_M, DEMO_FILES, DemoOptions, demo_settings, run_demo
+from armstereo.apps.scan_demo import SCAN_DEMO_FILES, ScanDemoOptions, run_scan_demo
 from armstereo.capture.plan import MAX_BASELINE_M
 from armstereo.cli import args as args_
 from armstereo.errors import ConfigError
@@ -26,9 +27,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                        "reconstruct it and score the depth against the exact ground truth.")
     p.add_argument("--out", default=None,
                    help="output folder (default: a fresh ./armstereo-demo-<time> folder)")
-    p.add_argument("--baseline", type=args_.positive("m", cap=MAX_BASELINE_M),
-                   default=DEFAULT_BASELINE_M,
-                   help=f"camera move between the two views (m, default {DEFAULT_BASELINE_M})")
+    p.add_argument("--baseline", type=args_.positive("m", cap=MAX_BASELINE_M), default=None,
+                   help=f"camera move between the two views (m, default {DEFAULT_BASELINE_M}; "
+                   f"{ScanDemoOptions.baseline} with --scan)")
     p.add_argument("--method", choices=["birchfield", "sgbm"], default="birchfield",
                    help="stereo matcher (default birchfield)")
     p.add_argument("--robot", default="ur5e",
@@ -36,15 +37,27 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "robot-info --save")
     p.add_argument("--seed", type=args_.whole(0, 2**32 - 1), default=0,
                    help="scene and noise seed")
-    p.add_argument("--mock-profile", choices=backends.mock_profile_names(), default="realistic",
-                   help="how the mock errs: realistic (default: factory-calibrated arm, camera "
-                   "calibration errors, image effects, a desk scene) or ideal (exact)")
+    p.add_argument("--mock-profile", choices=backends.mock_profile_names(), default=None,
+                   help="how the mock errs: realistic (factory-calibrated arm, camera "
+                   "calibration errors, image effects, a desk scene; the default of the pair "
+                   "demo) or ideal (exact, the table scene; the default of --scan)")
+    p.add_argument("--scan", action="store_true",
+                   help="scan the scene from several viewpoints (armstereo scan), fuse the pairs "
+                   "(armstereo fuse), render the mesh and score it")
+    p.add_argument("--views", default=None,
+                   help=f"--scan only: viewpoint layout, as armstereo scan takes it (default "
+                   f"{ScanDemoOptions.views})")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    options = DemoOptions(robot=args.robot, baseline=args.baseline, method=args.method,
-                          seed=args.seed, profile=args.mock_profile)
+    if args.scan:
+        return run_scan(args)
+    if args.views is not None:
+        raise ConfigError("--views applies to --scan only")
+    options = DemoOptions(robot=args.robot, baseline=args.baseline or DEFAULT_BASELINE_M,
+                          method=args.method, seed=args.seed,
+                          profile=args.mock_profile or "realistic")
     demo_settings(options)  # bad options fail here, before a folder is made
     out = _out_dir(args.out)
     with output_folder(out):  # a run that fails leaves no empty folder behind
@@ -54,12 +67,53 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def run_scan(args: argparse.Namespace) -> int:
+    """``demo --scan``: scan, fuse, render, score (armstereo.apps.scan_demo)."""
+    options = ScanDemoOptions(views=args.views or ScanDemoOptions.views,
+                              baseline=args.baseline or ScanDemoOptions.baseline,
+                              method=args.method, profile=args.mock_profile or "ideal",
+                              seed=args.seed, robot=args.robot)
+    options.check()
+    out = _out_dir(args.out, SCAN_DEMO_FILES)
+    with output_folder(out):
+        progress(f"armstereo demo --scan -> {out}/")
+        report = run_scan_demo(out, options, progress)
+    _print_scan_summary(report, out)
+    return 0
+
+
+def _print_scan_summary(report: dict, out: Path) -> None:
+    t, acc, mesh = report["timings_s"], report["accuracy"], report["mesh"]
+    print(f"profile:  {report['profile']} (camera noise {report['camera_noise']:g} grey levels)")
+    print(f"scan:     {report['views']}: {report['viewpoints_kept']} viewpoints kept, "
+          f"{report['viewpoints_dropped']} dropped; {report['pairs']} pairs, baseline "
+          f"{report['baseline_m'] * 1000:.0f} mm at {report['radius_m']:g} m")
+    print(f"fused:    {report['voxel_m'] * 1000:g} mm voxels ({report['voxels'] / 1e6:.1f} M), "
+          f"mesh {mesh['faces']:,} triangles, fused cloud {report['fused_points']:,} points")
+    if acc:
+        tg = report["targets"]
+        print(f"accuracy: {acc['accuracy_mean_mm']:.3f} mm mean (target <= "
+              f"{tg['accuracy_mean_mm']:g} mm), {acc['within_2mm'] * 100:.1f} % within 2 mm; "
+              f"raw pairs {acc['raw_pairs']['accuracy_mean_mm']:.3f} mm")
+        print(f"complete: {acc['completeness_mean_mm']:.3f} mm mean, "
+              f"{acc['completeness_within_5mm'] * 100:.1f} % within 5 mm (target >= "
+              f"{tg['completeness_within_5mm'] * 100:.0f} %); F1 @ 2 mm {acc['f1_2mm']:.3f}; "
+              f"targets {'met' if tg['met'] else 'MISSED'}")
+    stages = ", ".join(f"{k.removeprefix('fuse_')} {v:.1f} s" for k, v in t.items()
+                       if k not in ("total", "fuse_total"))
+    print(f"time:     {t['total']:.1f} s ({stages})")
+    mem = report["memory_mb"]
+    print(f"memory:   TSDF {mem['tsdf']:.0f} MB, peak RSS {mem['peak_rss']:.0f} MB")
+    print(f"files:    {out}/ scan.mcap fused/ (mesh.ply fused.ply fusion.mcap report.json) "
+          "mesh.png report.json")
+
+
 def progress(text: str) -> None:
     """Progress is logged to stderr (quiet with -q); stdout carries only the summary."""
     log.info("%s", text)
 
 
-def _out_dir(text: str | None) -> Path:
+def _out_dir(text: str | None, files: tuple[str, ...] = DEMO_FILES) -> Path:
     if text is None:
         out = Path(f"armstereo-demo-{time.strftime('%Y%m%d-%H%M%S')}")
         n = 1
@@ -70,7 +124,7 @@ def _out_dir(text: str | None) -> Path:
     out = Path(text)
     if out.exists() and not out.is_dir():
         raise ConfigError(f"--out {out} exists and is not a folder")
-    clash = [f for f in DEMO_FILES if (out / f).exists()]
+    clash = [f for f in files if (out / f).exists()]
     if clash:
         raise ConfigError(f"--out {out} already holds demo files ({', '.join(clash)}); "
                           "choose an empty folder")

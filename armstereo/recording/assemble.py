@@ -138,7 +138,7 @@ def _build_pairs(rec: Recording, col: Collector) -> None:
                       "missing); skipped")
             continue
         pair = Pair(event["pair"], left, right, event["commanded_baseline_m"],
-                    event["achieved_baseline_m"], event["direction"])
+                    event["achieved_baseline_m"], event["direction"], event["viewpoint"])
         _check_baseline(rec, pair)
         rec._pairs.append(pair)
 

@@ -172,7 +172,8 @@ class Collector:
                      "right_view": _int(obj, "right_view"),
                      "commanded_baseline_m": _number(obj, "commanded_baseline_m"),
                      "achieved_baseline_m": _number(obj, "achieved_baseline_m"),
-                     "direction": str(obj.get("direction", ""))}
+                     "direction": str(obj.get("direction", "")),
+                     "viewpoint": _int(obj, "viewpoint") if "viewpoint" in obj else None}
             if any(e["pair"] == event["pair"] for e in self.pair_events):
                 self._duplicates[topic] += 1
             else:

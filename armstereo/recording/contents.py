@@ -59,7 +59,8 @@ class View:
 
 @dataclass(frozen=True, eq=False)
 class Pair:
-    """Two views that form a stereo pair, with the baselines the capture reported (metres)."""
+    """Two views that form a stereo pair, with the baselines the capture reported (metres) and
+    the scan viewpoint it was shot from (None outside a scan)."""
 
     index: int
     left: View
@@ -67,6 +68,7 @@ class Pair:
     commanded_baseline_m: float
     achieved_baseline_m: float
     direction: str
+    viewpoint: int | None = None
 
 
 @dataclass(frozen=True)

@@ -53,6 +53,7 @@ def _pair_entry(views: dict[int, View], event: dict) -> dict:
         "direction": event["direction"],
         "complete": left is not None and right is not None,
         "image_size": _image_size(left) if left is not None else None,
+        **({} if event["viewpoint"] is None else {"viewpoint": event["viewpoint"]}),
     }
 
 
@@ -117,7 +118,8 @@ def _pair_line(p: dict) -> str:
         f"{p['image_size'][0]}x{p['image_size'][1]}" if p["image_size"] else "size unknown")
     return (f"pair {p['pair']}: views {p['left_view']},{p['right_view']}  commanded "
             f"{p['commanded_baseline_m'] * 1000:.3f} mm  achieved "
-            f"{p['achieved_baseline_m'] * 1000:.3f} mm  direction {p['direction']}  {size}")
+            f"{p['achieved_baseline_m'] * 1000:.3f} mm  direction {p['direction']}  {size}"
+            + (f"  viewpoint {p['viewpoint']}" if p.get("viewpoint") is not None else ""))
 
 
 def _calibration_line(c: dict | None) -> str:

@@ -102,6 +102,9 @@ CAPTURE_EVENT_SCHEMA = {
                 "commanded_baseline_m": {"type": "number"},
                 "achieved_baseline_m": {"type": "number"},
                 "direction": {"type": "string"},
+                "viewpoint": {"type": "integer", "minimum": 0,
+                              "description": "scan viewpoint the pair was shot from "
+                                             "(armstereo scan only)"},
             },
             "required": ["event", "pair", "left_view", "right_view", "commanded_baseline_m",
                          "achieved_baseline_m", "direction"],

@@ -204,8 +204,10 @@ class RecordingWriter:
 
     def write_pair(self, pair: int, left_view: int, right_view: int,
                    commanded_baseline_m: float, achieved_baseline_m: float,
-                   direction: str) -> None:
-        """Record that two written views form stereo pair ``pair`` (logged at the later view)."""
+                   direction: str, *, viewpoint: int | None = None) -> None:
+        """Record that two written views form stereo pair ``pair`` (logged at the later view).
+        ``viewpoint``: the scan viewpoint the pair was shot from (``armstereo scan``; the
+        event then carries it), None for a single-line capture."""
         pair = _check_index("pair", pair)
         for name, v in (("left_view", left_view), ("right_view", right_view)):
             if v not in self._view_times:
@@ -216,6 +218,8 @@ class RecordingWriter:
         event = {"event": "pair", "pair": pair, "left_view": int(left_view),
                  "right_view": int(right_view), "commanded_baseline_m": commanded,
                  "achieved_baseline_m": achieved, "direction": str(direction)}
+        if viewpoint is not None:
+            event["viewpoint"] = _check_index("viewpoint", viewpoint)
         with self._operation():
             self._add(S.TOPIC_EVENTS, t_ns, event)
 

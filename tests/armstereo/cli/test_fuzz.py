@@ -47,6 +47,8 @@ BASELINES: dict[str, list[str]] = {
     "study": ["study", "epipolar", "--trials", "1", "--points", "20", "--out", "{out}"],
     "analyze": ["analyze", "{cloud}", "--out", "{out}"],
     "fuse": ["fuse", str(SAMPLE_RECORDING), "--out", "{out}", "--voxel", "0.01"],
+    "scan": ["scan", "--target=-0.45,-0.13,0.03", "--baseline", "0.06", "--views", "ring:1",
+             "--out", "{out}.mcap"],
 }
 
 

@@ -51,13 +51,16 @@ def small_model():
 
 
 def record_small_scan(path, views: str = "ring:4", *, camera_noise: float = 1.0,
-                      elevation_deg: float = 55.0, radius: float = 0.45, baseline: float = 0.06):
-    """A mock multi-view scan of the table scene with the SMALL camera into ``path``."""
-    from armstereo.capture.scan_plan import plan_scan
-    from armstereo.fusion.mock_scan import record_mock_scan
-    from drivers.mock.start_poses import table_start as mock_start_configuration
+                      elevation_deg: float = 55.0, radius: float = 0.45, baseline: float = 0.06,
+                      faults: tuple[str, ...] = ()):
+    """A mock multi-view scan of the table scene with the SMALL camera into ``path``, recorded
+    by the code ``armstereo scan`` runs; returns its ScanOutcome."""
+    from armstereo import backends
+    from armstereo.apps.scan import ScanRequest, backend_metadata, record_scan
 
-    model = small_model()
-    plan = plan_scan(model, mock_start_configuration(model), TARGET, views=views, radius=radius,
-                     elevation_deg=elevation_deg, baseline=baseline)
-    return plan, record_mock_scan(path, plan, model, camera_noise=camera_noise)
+    arm = backends.arm_config("mock", seed=1, faults=faults)
+    camera = backends.camera_config("mock", noise=camera_noise, seed=1, faults=faults)
+    request = ScanRequest(target=tuple(TARGET), views=views, radius=radius,
+                          elevation_deg=elevation_deg, baseline=baseline)
+    return record_scan(path, request, small_model(), arm_config=arm, camera_config=camera,
+                       metadata=backend_metadata("mock", arm, "mock", camera), progress=None)

@@ -13,23 +13,25 @@ Slow: about 50 s of CPU time (2.7 min wall on the loaded 2-core machine): two 12
 
 import pytest
 
-from armstereo.capture.scan_plan import plan_scan
-from armstereo.fusion.mock_scan import record_mock_scan
+from armstereo import backends
+from armstereo.apps.scan import ScanRequest, record_scan
 from armstereo.fusion.run import FusionOptions, fuse_recording
 from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
-from drivers.mock.start_poses import table_start as mock_start_configuration
 from tests.armstereo.fusion.synthetic import TARGET
 
 pytestmark = pytest.mark.slow
 
 
 def _scan(path, camera_noise: float):
+    """A ring:12 scan of the table scene recorded by what ``armstereo scan`` runs."""
     model = ArmModel.load("ur5e", mount=CameraMount.load(None))
-    plan = plan_scan(model, mock_start_configuration(model), TARGET, views="ring:12",
-                     radius=0.45, elevation_deg=55.0, baseline=0.06)
-    assert len(plan.views) == 12
-    record_mock_scan(path, plan, model, camera_noise=camera_noise, seed=1)
+    request = ScanRequest(target=tuple(TARGET), views="ring:12", radius=0.45,
+                          elevation_deg=55.0, baseline=0.06)
+    outcome = record_scan(path, request, model,
+                          camera_config=backends.camera_config("mock", noise=camera_noise,
+                                                               seed=1), progress=None)
+    assert len(outcome.result.pairs) == 12
     return path
 
 
