@@ -218,16 +218,16 @@ def plan_capture(model: ArmModel, q_start: np.ndarray, settings: CaptureSettings
     step = R_base_camera @ (settings.baseline * settings.direction)  # base-frame translation
     n_views = settings.pairs + 1
     poses = [_translated(T0, k * step) for k in range(n_views)]
-    checks = [_check_speed(settings.limits), _check_direction(settings),
-              _check_start(model, q_start, settings)]
+    checks = [check_speed(settings.limits), _check_direction(settings),
+              check_start(model, q_start, settings)]
     # Every view is a path sample, so the views' joints come from the path's IK.
     per_pair = max(1, math.ceil(settings.baseline / settings.path_step))
-    samples = _sample_path(model, q_start, T0, step, per_pair, settings.pairs)
+    samples = sample_path(model, q_start, T0, step, per_pair, settings.pairs)
     box = settings.workspace or Workspace.around(model)
-    checks += _check_path(model, samples, settings, box)
+    checks += check_path(model, samples, settings, box)
     q_views = _view_joints(q_start, samples, per_pair, n_views)
     checks.append(_check_travel(q_views, settings))
-    checks.append(_check_motion(model, poses))
+    checks.append(check_motion(model, poses))
     cams = [(T @ model.mount.T_flange_camera)[:3, 3] for T in poses]
     duration = _estimate_duration(settings, n_views)
     return CapturePlan(settings, q_start, poses, q_views, cams, checks, duration)
@@ -253,7 +253,7 @@ def _translated(T: np.ndarray, delta: np.ndarray) -> np.ndarray:
     return out
 
 
-def _check_speed(lim: MotionLimits) -> Check:
+def check_speed(lim: MotionLimits) -> Check:
     caps = [("linear speed", lim.linear_speed, MAX_LINEAR_SPEED, "m/s"),
             ("linear acceleration", lim.linear_acceleration, MAX_LINEAR_ACCELERATION, "m/s^2"),
             ("joint speed", lim.joint_speed, MAX_JOINT_SPEED, "rad/s"),
@@ -273,7 +273,7 @@ def _check_direction(s: CaptureSettings) -> Check:
                  f"{MIN_ANGLE_TO_OPTICAL_AXIS_DEG:.0f} deg: rectification needs sideways motion)")
 
 
-def _check_motion(model: ArmModel, poses: list[np.ndarray]) -> Check:
+def check_motion(model: ArmModel, poses: list[np.ndarray]) -> Check:
     """Each planned pair must be real stereo (not a pure rotation); an epipole inside the image
     (a baseline close to the optical axis) degenerates rectification, so it fails too."""
     cams = [T @ model.mount.T_flange_camera for T in poses]
@@ -286,7 +286,7 @@ def _check_motion(model: ArmModel, poses: list[np.ndarray]) -> Check:
                  "outside the image")
 
 
-def _check_start(model: ArmModel, q: np.ndarray, s: CaptureSettings) -> Check:
+def check_start(model: ArmModel, q: np.ndarray, s: CaptureSettings) -> Check:
     try:
         model.check_limits(q, s.joint_margin)
     except JointLimitError as err:
@@ -295,7 +295,7 @@ def _check_start(model: ArmModel, q: np.ndarray, s: CaptureSettings) -> Check:
                  f"{s.joint_margin:.2f} rad margin")
 
 
-def _sample_path(model: ArmModel, q_start: np.ndarray, T0: np.ndarray, step: np.ndarray,
+def sample_path(model: ArmModel, q_start: np.ndarray, T0: np.ndarray, step: np.ndarray,
                  per_pair: int, pairs: int) -> list[tuple[np.ndarray, np.ndarray | None, str]]:
     """IK ``per_pair`` times per baseline ``step`` along the straight flange path (sample
     ``k * per_pair`` is view ``k``): (T_base_flange, q or None, error), up to the first failure."""
@@ -311,7 +311,7 @@ def _sample_path(model: ArmModel, q_start: np.ndarray, T0: np.ndarray, step: np.
     return out
 
 
-def _check_path(model: ArmModel, samples, s: CaptureSettings, box: Workspace) -> list[Check]:
+def check_path(model: ArmModel, samples, s: CaptureSettings, box: Workspace) -> list[Check]:
     failed = [x for x in samples if x[1] is None]
     if failed:
         T, _, err = failed[0]

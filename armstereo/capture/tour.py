@@ -36,9 +36,10 @@ from armstereo.capture.plan import (
     PairStep,
     Step,
     Workspace,
-    _check_speed,
-    _check_start,
-    _sample_path,
+    check_motion,
+    check_speed,
+    check_start,
+    sample_path,
     validate_settings,
 )
 from armstereo.capture.scan_plan import ScanPlan, ScanView, order_tour
@@ -143,13 +144,27 @@ def plan_tour(model: ArmModel, scan: ScanPlan, settings: CaptureSettings) -> Sca
     scan = replace(scan, tour_joint_travel_rad=sum(
         float(np.abs(leg.samples[-1] - leg.samples[0]).max()) for leg in legs
         if leg.kind == "joints"))
-    checks = [_check_speed(settings.limits), _check_start(model, scan.q_start, settings),
+    checks = [check_speed(settings.limits), check_start(model, scan.q_start, settings),
               _check_viewpoints(scan)]
     if scan.views:
         checks += check_legs(model, legs, settings, box)
+        checks.append(_check_pairs_are_stereo(model, scan))
     duration = sum(leg.duration_s for leg in legs) + 2 * len(scan.views) * settings.settle_s
     return ScanTour(scan, settings, np.asarray(scan.q_start, float), legs, steps, checks,
                     duration, len(router.via_start))
+
+
+def _check_pairs_are_stereo(model: ArmModel, scan) -> Check:
+    """Each viewpoint's two views must be real stereo with the epipoles outside the images
+    (the same rule as a line capture's pre-flight)."""
+    T_camera_flange = np.linalg.inv(model.mount.T_flange_camera)
+    for view in scan.views:
+        check = check_motion(model, [view.T_base_left @ T_camera_flange,
+                                     view.T_base_right @ T_camera_flange])
+        if not check.ok:
+            return Check(check.name, False, f"viewpoint {view.index}: {check.detail}")
+    return Check("stereo motion", True, "every viewpoint's pair is stereo with its epipoles "
+                 "outside the images")
 
 
 class _Router:
@@ -264,7 +279,7 @@ def baseline_leg(model: ArmModel, view: ScanView, s: CaptureSettings) -> Leg:
     duration = trapezoid_duration(s.baseline, lim.linear_speed, lim.linear_acceleration)
     T_left = model.flange_pose_for_camera(view.T_base_left)
     step = view.T_base_right[:3, 3] - view.T_base_left[:3, 3]
-    samples = _sample_path(model, view.q_left, T_left, step, per_move, 1)
+    samples = sample_path(model, view.q_left, T_left, step, per_move, 1)
     label = f"viewpoint {view.index} baseline"
     failed = [err for _, q, err in samples if q is None]
     if failed:

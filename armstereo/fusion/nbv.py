@@ -41,8 +41,8 @@ from armstereo.capture.plan import (
     PairStep,
     Step,
     Workspace,
-    _check_speed,
-    _check_start,
+    check_speed,
+    check_start,
     validate_settings,
 )
 from armstereo.capture.scan_plan import DroppedView, ScanPlan, ScanView
@@ -343,7 +343,7 @@ def plan_auto(model: ArmModel, candidates: ScanPlan, settings: CaptureSettings, 
         kept.append(v)
         legs += own
     scan = replace(candidates, views=kept, dropped=sorted(dropped, key=lambda d: d.index))
-    checks = [_check_speed(settings.limits), _check_start(model, q0, settings),
+    checks = [check_speed(settings.limits), check_start(model, q0, settings),
               Check("viewpoints", bool(kept), f"{len(kept)} of "
                     f"{len(kept) + len(dropped)} candidates pass their checks")]
     if legs:
