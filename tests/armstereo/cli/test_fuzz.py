@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import os
 import random
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -32,8 +33,8 @@ TEMPLE = DATA / "temple_ring"
 BASELINES: dict[str, list[str]] = {
     "demo": ["demo", "--out", "{out}"],
     "capture": ["capture", "--out", "{out}.mcap"],
-    "inspect": ["inspect", str(SAMPLE_RECORDING)],
-    "reconstruct": ["reconstruct", str(SAMPLE_RECORDING), "--out", "{out}"],
+    "inspect": ["inspect", "{sample}"],
+    "reconstruct": ["reconstruct", "{sample}", "--out", "{out}"],
     "stereo": ["stereo", str(TSUKUBA / "imL.png"), str(TSUKUBA / "imR.png"),
                "--max-disparity", "15", "--out", "{out}.pfm"],
     "eval": ["eval", str(TSUKUBA / "groundtruth.png"), str(TSUKUBA / "groundtruth.png"),
@@ -41,12 +42,12 @@ BASELINES: dict[str, list[str]] = {
     "plan": ["plan", "--near", "0.4", "--far", "0.8", "--depth-accuracy", "0.004"],
     "sweep": ["sweep", "--baselines", "0.05", "--distances", "1.0", "--out", "{out}"],
     "robot-info": ["robot-info", "--host", "127.0.0.1", "--timeout", "0.5"],
-    "check": ["check", str(SAMPLE_RECORDING)],
+    "check": ["check", "{sample}"],
     "reconstruct-images": ["reconstruct-images", str(TEMPLE / "templeSR0008.png"),
                            str(TEMPLE / "templeSR0009.png"), "--out", "{out}"],
     "study": ["study", "epipolar", "--trials", "1", "--points", "20", "--out", "{out}"],
     "analyze": ["analyze", "{cloud}", "--out", "{out}"],
-    "fuse": ["fuse", str(SAMPLE_RECORDING), "--out", "{out}", "--voxel", "0.01"],
+    "fuse": ["fuse", "{sample}", "--out", "{out}", "--voxel", "0.01"],
     "scan": ["scan", "--target=-0.45,-0.13,0.03", "--baseline", "0.06", "--views", "ring:1",
              "--out", "{out}.mcap"],
 }
@@ -87,7 +88,7 @@ def argv_for(command: str, target: str, value: str, tmp: Path) -> tuple[list[str
     value = fill.get(value, value)
     out = tmp / "out"
     argv = [a.replace("{out}", str(out)).replace("{cloud}", str(_cloud(tmp)))
-            for a in BASELINES[command]]
+            .replace("{sample}", str(_sample(tmp))) for a in BASELINES[command]]
     if target.startswith("#"):
         positionals = [i for i, a in enumerate(argv[1:], 1)
                        if not a.startswith("-") and not argv[i - 1].startswith("--")]
@@ -100,6 +101,14 @@ def argv_for(command: str, target: str, value: str, tmp: Path) -> tuple[list[str
         argv += [target, value]
     watched = None if target == "--out" else _output(argv)
     return ["-q", *argv], watched
+
+
+def _sample(tmp: Path) -> Path:
+    """A copy of the sample recording: commands write their default outputs beside it."""
+    path = tmp / "sample.mcap"
+    if not path.exists():
+        shutil.copyfile(SAMPLE_RECORDING, path)
+    return path
 
 
 def _cloud(tmp: Path) -> Path:
