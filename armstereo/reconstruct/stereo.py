@@ -19,9 +19,12 @@ restores it) and why:
 
 - ``cost_window=(1, 3)``: dissimilarities summed over three rows tie neighbouring scanlines
   together (the paper's rows streak); wider windows blurred depth edges without gaining;
-- ``slant_penalty=10``: the paper charges a full occlusion for every one-pixel disparity step,
+- ``slant_penalty=20``: the paper charges a full occlusion for every one-pixel disparity step,
   so slanted and curved surfaces became staircases or were lost; a cheaper step that needs
-  no intensity variation keeps them (5 let the programme creep into occluded strips);
+  no intensity variation keeps them (5 let the programme creep into occluded strips; 10 let
+  a thin object's top ramp down across the table beside it, 24 mm too wide on the mock table's
+  book, while 20 keeps its edge and costs little on the real rings:
+  bench/results/real_multiview_slant20.md);
 - ``reward_texture=0.5``: matching a pixel without texture earns no reward, so the programme
   no longer bends its path to match a black gap at a wrong disparity and then declares the
   textured column beside it occluded (the temple's lost column);
@@ -72,7 +75,7 @@ POSTPROCESS_MODES = ("median", "paper", "none")
 
 # Defaults chosen on the benchmarks (module doc, "Defaults")
 COST_WINDOW = (1, 3)  # (width, height) of the summed-cost window
-SLANT_PENALTY = 10.0  # grey levels, for a one-pixel disparity step
+SLANT_PENALTY = 20.0  # grey levels, for a one-pixel disparity step
 TEXTURE_THRESHOLD = 1.0  # grey levels per pixel, mean |horizontal gradient| over the window
 TEXTURE_WINDOW = 5
 REWARD_TEXTURE = 0.5  # grey levels per pixel: matching flatter pixels earns no reward
