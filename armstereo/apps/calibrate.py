@@ -20,13 +20,14 @@ poses are in the controller's ``base`` frame.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from armstereo.calibration.board import Board
-from armstereo.calibration.calibrate import Calibration
+from armstereo.calibration.calibrate import Calibration, CalibrationOptions
 from armstereo.calibration.session import calibrate_recording
 from armstereo.calibration.views import (
     CalibrationViewPlan,
@@ -60,8 +61,8 @@ class SessionPlan:
         return self.tour.ok
 
     def describe(self) -> list[str]:
-        t = self.T_camera_board_start[:3, 3]
-        lines = [f"board in the start image: {np.linalg.norm(t):.3f} m from the camera"]
+        d = self.views.views[0].distance_m
+        lines = [f"board found in the start image, its centre {d:.3f} m from the camera"]
         return lines + self.views.describe() + self.tour.describe()
 
 
@@ -103,13 +104,20 @@ def finish(recording: Path, out: Path, board: Board) -> Calibration:
     is kept and how to redo the computation from it.
     """
     try:
-        cal = calibrate_recording(recording, board=board)
+        cal = calibrate_recording(recording, board=board, options=calibration_options(out))
     except ArmstereoError as err:
         err.args = (f"{err}; the recording {recording} is kept (redo the computation with "
                     f"armstereo calibrate --from {recording} --out {out})",)
         raise
     write_text_atomic(out, cal.mount_toml)
     return cal
+
+
+def calibration_options(out: Path) -> CalibrationOptions:
+    """The default computation, with the mount named after its file (``my_camera.toml`` ->
+    ``my_camera``; characters a mount name cannot hold become ``_``)."""
+    name = re.sub(r"[^A-Za-z0-9_.\-]", "_", Path(out).stem) or "calibrated_camera"
+    return CalibrationOptions(mount_name=name)
 
 
 def mock_camera_values(board: Board, nominal: CameraMount, seed: int) -> dict:

@@ -14,7 +14,12 @@ import logging
 from pathlib import Path
 
 from armstereo import backends
-from armstereo.apps.calibrate import finish, mock_camera_values, plan_session
+from armstereo.apps.calibrate import (
+    calibration_options,
+    finish,
+    mock_camera_values,
+    plan_session,
+)
 from armstereo.calibration.board import Board, parse_board
 from armstereo.calibration.calibrate import Calibration
 from armstereo.calibration.checks import MIN_VIEWS
@@ -90,12 +95,14 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run_offline(args: argparse.Namespace) -> int:
-    given = [f"--{name.replace('_', '-')}" for name in LIVE_ONLY if getattr(args, name)]
+    given = [f"--{name.replace('_', '-')}" for name in LIVE_ONLY
+             if getattr(args, name) not in (None, False)]
     if given:
         raise ConfigError(f"--from recomputes a recorded session and moves nothing; "
                           f"{', '.join(given)} do(es) not apply")
     out = _output_path(args.out, "--out", args.force, dry_run=False)
-    cal = calibrate_recording(args.from_recording, board=args.board, robot=args.robot)
+    cal = calibrate_recording(args.from_recording, board=args.board, robot=args.robot,
+                              options=calibration_options(out))
     write_text_atomic(out, cal.mount_toml)
     _print_result(args, cal, out, args.from_recording)
     return 0
@@ -104,7 +111,8 @@ def _run_offline(args: argparse.Namespace) -> int:
 def _run_live(args: argparse.Namespace) -> int:
     if args.board is None:
         raise ConfigError("--board is required (or --from CALIB.mcap to recompute a recording)")
-    args.arm, args.camera = args.arm or "mock", args.camera or "mock"
+    args.arm = "mock" if args.arm is None else args.arm
+    args.camera = "mock" if args.camera is None else args.camera
     out = _output_path(args.out, "--out", args.force, args.dry_run)
     recording = _output_path(args.recording or str(Path(args.out).with_suffix(".mcap")),
                              "--recording", args.force, args.dry_run)
