@@ -77,6 +77,8 @@ def test_mount_file_is_what_capture_and_reconstruct_read(realistic):
     assert meta["purpose"] == "calibration" and meta["calibration_board"] == BOARD
     assert meta["kinematics_source"] == "controller" and meta["mock_profile"] == "realistic"
     assert report["mount_file"] == str(out) and report["recording"]["path"] == str(recording)
+    with contextlib.redirect_stdout(io.StringIO()):
+        assert main(["-q", "inspect", str(recording)]) == 0  # views and no pairs: fine here
 
 
 def test_from_reproduces_the_recorded_session(realistic, tmp_path):
