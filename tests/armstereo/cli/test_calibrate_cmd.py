@@ -111,6 +111,15 @@ def test_nominal_kinematics_bias_the_hand_eye_and_the_report_says_so(realistic, 
     assert any("calibrated kinematics" in w for w in nominal["warnings"])
 
 
+def test_from_with_the_wrong_board_says_it_is_not_found(realistic, tmp_path):
+    _, _, recording = realistic
+    out = tmp_path / "cam.toml"
+    code, _, stderr = calibrate(out, "--from", str(recording), "--board",
+                                "charuco:14x10:0.02:0.015")
+    assert code == 2 and stderr.count("\n") == 1
+    assert "board not found in 15 of 15 views" in stderr and not out.exists()
+
+
 def test_dry_run_plans_and_checks_every_move_and_writes_nothing(tmp_path):
     out = tmp_path / "cam.toml"
     code, stdout, stderr = calibrate(out, "--board", BOARD, "--dry-run")
@@ -151,6 +160,15 @@ def test_too_similar_views_are_refused_and_the_recording_is_kept(tmp_path):
     recording = out.with_suffix(".mcap")
     assert f"the recording {recording} is kept" in stderr and "--from" in stderr
     assert len(Recording.open(recording).views) == 6 and not out.exists()
+
+
+@pytest.mark.slow
+def test_rotations_about_one_axis_only_are_refused(tmp_path):
+    out = tmp_path / "cam.toml"
+    code, _, stderr = calibrate(out, "--board", BOARD, "--views", "8", "--max-tilt", "5",
+                                "--max-roll", "90")
+    assert code == 2 and stderr.count("\n") == 1
+    assert "about parallel axes" in stderr and "is kept" in stderr
 
 
 def test_a_camera_fault_keeps_the_views_recorded_so_far(tmp_path):
