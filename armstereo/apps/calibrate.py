@@ -5,9 +5,10 @@ The steps the command runs, each usable alone:
 1. :func:`plan_session`: grab one image at the start pose, find the board (its pose with the
    mount's nominal intrinsics), plan N diverse views around it
    (:func:`armstereo.calibration.plan_calibration_views`), order them for a short tour and
-   check every joint move as capture checks its moves (:mod:`armstereo.capture.tour`).
-2. :func:`armstereo.capture.tour_run.record_tour`: move, settle, grab, read the actual joints,
-   record (crash-safe).
+   check every joint move as a scan checks its joint moves
+   (:mod:`armstereo.capture.view_tour`).
+2. :func:`armstereo.capture.session.capture_to_file` runs that tour as any capture: move,
+   settle, grab, read the actual joints, record (crash-safe; the arm stops on any error).
 3. :func:`finish`: calibrate the recorded session exactly as ``calibrate --from`` does
    (:func:`armstereo.calibration.session.calibrate_recording`), so the live result and an
    offline recomputation of its recording are the same computation on the same data, and
@@ -35,8 +36,9 @@ from armstereo.calibration.views import (
     board_in_start_view,
     plan_calibration_views,
 )
+from armstereo.capture.plan import CaptureSettings
 from armstereo.capture.scan_plan import order_tour
-from armstereo.capture.tour import TourPlan, TourSettings, plan_tour
+from armstereo.capture.view_tour import ViewTour, plan_view_tour, tour_settings
 from armstereo.devices import Camera
 from armstereo.errors import ArmstereoError
 from armstereo.io.files import write_text_atomic
@@ -54,7 +56,7 @@ class SessionPlan:
     start_image: np.ndarray
     T_camera_board_start: np.ndarray
     views: CalibrationViewPlan
-    tour: TourPlan
+    tour: ViewTour
 
     @property
     def ok(self) -> bool:
@@ -68,13 +70,15 @@ class SessionPlan:
 
 def plan_session(model: ArmModel, camera: Camera, q_start: np.ndarray, board: Board, *,
                  views: ViewPlanSettings | None = None,
-                 tour: TourSettings | None = None) -> SessionPlan:
+                 tour: CaptureSettings | None = None) -> SessionPlan:
     """Grab the start image, find the board and plan and check the session (moves nothing).
 
     ``model`` carries the kinematics the session will use (calibrated where read) and the
-    nominal mount. Raises CalibrationInputError (exit 2) when the board is not (well) visible
-    in the start image and PreflightError (exit 3) when too few views can be reached; a
-    failed tour check is left in the plan (``plan.tour.require_ok()``).
+    nominal mount; ``tour`` the settle time, speed caps and workspace
+    (:func:`armstereo.capture.view_tour.tour_settings`). Raises CalibrationInputError (exit 2)
+    when the board is not (well) visible in the start image and PreflightError (exit 3) when
+    too few views can be reached; a failed tour check is left in the plan
+    (``plan.tour.require_ok()``).
     """
     views = views or ViewPlanSettings()
     image = camera.grab().image
@@ -83,8 +87,8 @@ def plan_session(model: ArmModel, camera: Camera, q_start: np.ndarray, board: Bo
                                   settings=views)
     ordered = _tour_order(np.asarray(q_start, float), plan)
     q_views = [v.q for v in ordered.views]
-    return SessionPlan(image, T_cb, ordered, plan_tour(model, q_start, q_views,
-                                                             tour or TourSettings()))
+    return SessionPlan(image, T_cb, ordered, plan_view_tour(model, q_start, q_views,
+                                                                  tour or tour_settings()))
 
 
 def _tour_order(q_start: np.ndarray, plan: CalibrationViewPlan) -> CalibrationViewPlan:

@@ -27,11 +27,10 @@ from armstereo.calibration.report import report_lines
 from armstereo.calibration.session import calibrate_recording, calibration_metadata
 from armstereo.calibration.views import MAX_VIEWS, ViewPlanSettings
 from armstereo.capture.kinematics import choose_kinematics
-from armstereo.capture.plan import Workspace
+from armstereo.capture.plan import CaptureSettings, Workspace
 from armstereo.capture.run import model_metadata
-from armstereo.capture.session import confirm_live_motion
-from armstereo.capture.tour import TourSettings
-from armstereo.capture.tour_run import record_tour
+from armstereo.capture.session import capture_to_file, confirm_live_motion
+from armstereo.capture.view_tour import tour_settings
 from armstereo.cli import args as args_
 from armstereo.cli.backend_flags import BackendChoice, add_backend_flags, backend_choice
 from armstereo.cli.capture_cmd import add_motion_flags, ask_to_move
@@ -142,7 +141,7 @@ def _run_live(args: argparse.Namespace) -> int:
             metadata = {**model_metadata(model), **kinematics.metadata(),
                         **_metadata(args, choice),
                         **calibration_metadata(args.board, args.views)}
-            result = record_tour(arm, camera, model, plan.tour, recording, metadata)
+            result = capture_to_file(arm, camera, model, plan.tour, recording, metadata)
     log.info("recorded %d views -> %s; calibrating", result.views, recording)
     cal = finish(recording, out, args.board)
     _print_result(args, cal, out, recording)
@@ -164,10 +163,10 @@ def _view_settings(args: argparse.Namespace) -> ViewPlanSettings:
                             max_roll_deg=args.max_roll)
 
 
-def _tour_settings(args: argparse.Namespace) -> TourSettings:
+def _tour_settings(args: argparse.Namespace) -> CaptureSettings:
     limits = MotionLimits(linear_speed=args.speed, linear_acceleration=args.acceleration)
     box = Workspace.parse(args.workspace) if args.workspace else None
-    return TourSettings(settle_s=args.settle, limits=limits, workspace=box)
+    return tour_settings(settle_s=args.settle, limits=limits, workspace=box)
 
 
 def _output_path(text: str, flag: str, force: bool, dry_run: bool) -> Path:
