@@ -91,9 +91,10 @@ def stage_times(folder: Path) -> dict[str, float]:
                 times[name] = times.get(name, 0.0) + time.perf_counter() - t0
         return wrapper
 
-    originals = (cmd.plan_session, cmd.record_tour, cmd.finish)
+    originals = (cmd.plan_session, cmd.capture_to_file, cmd.finish)
     cmd.plan_session = timed("start image, board, view plan, tour checks", app.plan_session)
-    cmd.record_tour = timed("recording 15 views (rendering, PNG, MCAP)", cmd.record_tour)
+    cmd.capture_to_file = timed("recording 15 views (rendering, PNG, MCAP)",
+                                cmd.capture_to_file)
     cmd.finish = timed("calibration of the recording (detection, intrinsics, 5 closed-form "
                        "methods, refinement, leave-one-out)", app.finish)
     try:
@@ -101,7 +102,7 @@ def stage_times(folder: Path) -> dict[str, float]:
         run_cli(folder / "stages.toml", "--mock-profile", "realistic")
         times["total in process (imports not counted)"] = time.perf_counter() - t0
     finally:
-        cmd.plan_session, cmd.record_tour, cmd.finish = originals
+        cmd.plan_session, cmd.capture_to_file, cmd.finish = originals
     return times
 
 
