@@ -3,12 +3,16 @@ reading one back for an offline recomputation (``armstereo calibrate --from CALI
 
 A calibration session is an ordinary armstereo recording (``RecordingWriter.write_view`` per
 view: image, actual joints, /tf with the *nominal* mount) whose ``armstereo`` metadata record
-also holds the keys below. The computation uses only the images, the joints and the arm model
-named in the metadata, so a recomputation gives the same mount.
+also holds the keys below. The computation uses only the images, the joints and the arm's
+kinematics the session recorded (the controller's calibrated DH table when it was read, see
+:mod:`armstereo.capture.kinematics`; nominal kinematics would bias the hand-eye), so a
+recomputation gives the same mount. A mock session also records the mock camera's truth
+(``mock_camera_truth``), which grades the result (``truth_error``).
 """
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -20,8 +24,11 @@ from armstereo.calibration.calibrate import (
     CalibrationOptions,
     calibrate_from_views,
 )
+from armstereo.calibration.mount_file import truth_error
+from armstereo.camera_model import Intrinsics
 from armstereo.errors import ArmstereoError, RecordingError
 from armstereo.kinematics import ArmModel
+from armstereo.mount import CameraMount
 from armstereo.recording import Recording
 
 PURPOSE_KEY = "purpose"
@@ -48,6 +55,7 @@ class CalibrationSession:
     mount_toml: str
     view_indices: list[int]
     warnings: list[str] = field(default_factory=list)
+    metadata: dict[str, str] = field(default_factory=dict)
 
 
 def read_calibration_session(path: str | Path, board: Board | None = None) -> CalibrationSession:
@@ -80,7 +88,53 @@ def read_calibration_session(path: str | Path, board: Board | None = None) -> Ca
     if not robot:
         raise RecordingError(f"{rec.path}: metadata names no robot model")
     return CalibrationSession(Path(path), images, joints, board, robot,
-                              meta.get("mount_toml", ""), idx, list(rec.warnings))
+                              meta.get("mount_toml", ""), idx, list(rec.warnings), dict(meta))
+
+
+# Kinematics sources whose recorded DH table is the arm's calibrated one (capture.kinematics).
+CALIBRATED_SOURCES = ("controller", "file")
+
+
+def recorded_arm_model(session: CalibrationSession) -> ArmModel:
+    """The kinematics the session's poses were computed with: the recorded calibrated DH table
+    (``kinematics_source`` controller or file), else the named model. RecordingError when the
+    recorded table is unreadable or does not match its recorded hash."""
+    from armstereo.robot.dh import SOURCE_CONTROLLER, DHTable
+
+    meta = session.metadata
+    text = meta.get("dh_table", "")
+    if meta.get("kinematics_source") not in CALIBRATED_SOURCES or not text:
+        return ArmModel.load(session.robot)
+    try:
+        values = json.loads(text)
+        table = DHTable(model=session.robot, theta=values["theta"], a=values["a"],
+                        d=values["d"], alpha=values["alpha"], source=SOURCE_CONTROLLER)
+    except (ValueError, TypeError, KeyError, ArmstereoError) as err:
+        raise RecordingError(f"{session.path}: the recorded dh_table is unusable ({err})"
+                             ) from None
+    expected = meta.get("dh_sha256")
+    if expected and expected != table.sha256:
+        raise RecordingError(f"{session.path}: the recorded dh_table does not match its "
+                             f"dh_sha256 (the metadata is damaged)")
+    return ArmModel.from_dh(table)
+
+
+def mock_true_mount(session: CalibrationSession) -> CameraMount | None:
+    """The mock camera's true mount recorded with a mock session (``mock_camera_truth``),
+    or None for a real camera's session."""
+    text = session.metadata.get("mock_camera_truth", "")
+    if not text or not session.images:
+        return None
+    try:
+        truth = json.loads(text)
+        h, w = session.images[0].shape[:2]
+        intr = Intrinsics(w, h, np.asarray(truth["K"], dtype=float),
+                          np.asarray(truth["dist"], dtype=float))
+        return CameraMount("mock_truth", np.asarray(truth["T_flange_camera"], dtype=float),
+                           intr)
+    except (ValueError, TypeError, KeyError, ArmstereoError) as err:
+        raise RecordingError(f"{session.path}: the recorded mock camera truth is unusable "
+                             f"({err})") from None
 
 
 def calibrate_recording(path: str | Path, *, board: Board | None = None,
@@ -88,14 +142,26 @@ def calibrate_recording(path: str | Path, *, board: Board | None = None,
                         options: CalibrationOptions | None = None) -> Calibration:
     """``armstereo calibrate --from``: redo the calibration of a recorded session.
 
-    The arm model is the recorded one (by name) unless ``robot`` (a model name or URDF path)
-    is given; ``board`` overrides the recorded spec. The report gains ``"recording"`` (path,
-    views read, reader warnings).
+    The arm's kinematics are the recorded ones (:func:`recorded_arm_model`) unless ``robot``
+    (a model name, URDF path or saved model file) is given; ``board`` overrides the recorded
+    spec. The report gains ``"recording"`` (path, views read, reader warnings),
+    ``"kinematics"`` (source, DH table hash) and, for a mock session, ``"truth_error"``
+    (``{"translation_m", "rotation_deg", "focal_rel"}`` against the mock camera's truth).
     """
+    from armstereo.robot.model_file import load_arm_model
+
     session = read_calibration_session(path, board)
-    model = ArmModel.load(robot or session.robot)
+    model = load_arm_model(robot) if robot else recorded_arm_model(session)
     cal = calibrate_from_views(session.images, session.joints, model, session.board,
                                options=options or CalibrationOptions())
     cal.report["recording"] = {"path": str(session.path), "views": session.view_indices,
                                "warnings": session.warnings}
+    cal.report["kinematics"] = {
+        "source": "given" if robot else session.metadata.get("kinematics_source", "unknown"),
+        "model": model.name,
+        "dh_sha256": model.dh.sha256 if model.dh is not None else "",
+    }
+    truth = mock_true_mount(session)
+    if truth is not None:
+        cal.report["truth_error"] = truth_error(cal.mount, truth)
     return cal

@@ -16,9 +16,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                        "recording",
                        description="Summarise an MCAP recording: channels and message counts, "
                        "duration, stereo pairs with their baselines, calibration, metadata and "
-                       "warnings. Exit 0 if it holds a usable stereo pair; 5 if it is unreadable "
-                       "or has no complete pair with a calibration (the summary is still "
-                       "printed when the file is readable).")
+                       "warnings. Exit 0 if it holds a usable stereo pair (a calibration "
+                       "recording: a complete view); 5 if it is unreadable or has no complete "
+                       "pair with a calibration (the summary is still printed when the file is "
+                       "readable).")
     p.add_argument("file", metavar="FILE", type=args_.input_file, help="recording (.mcap)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON (stable keys)")
     p.set_defaults(func=run)
@@ -30,5 +31,12 @@ def run(args: argparse.Namespace) -> int:
     print(json.dumps(summary, indent=2) if args.json else format_text(summary))
     if rec.start_ns is None:
         raise RecordingError(f"{args.file} holds no readable message")
+    from armstereo.calibration.session import PURPOSE, PURPOSE_KEY
+
+    if rec.metadata.get(PURPOSE_KEY) == PURPOSE:  # armstereo calibrate: views, no pairs
+        if not rec.views:
+            raise RecordingError(f"{args.file} is a calibration recording without a complete "
+                                 "view")
+        return 0
     rec.require_pairs()
     return 0

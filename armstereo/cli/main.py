@@ -16,7 +16,8 @@ from armstereo import __version__
 from armstereo.errors import ArmstereoError
 
 SUBCOMMANDS = ["demo", "capture", "inspect", "reconstruct", "stereo", "eval", "plan", "sweep",
-               "robot_info", "check", "reconstruct_images", "study", "analyze", "fuse", "scan"]
+               "robot_info", "check", "reconstruct_images", "study", "analyze", "fuse", "scan",
+               "calibrate"]
 
 log = logging.getLogger("armstereo")
 

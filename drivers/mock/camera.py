@@ -98,7 +98,8 @@ class MockCamera(Camera):
         the mock arm's true flange pose, a real controller's reported one, or else forward
         kinematics of the arm's actual joints through ``model``; then through the camera's
         true hand-eye transform (the mount's, with the profile's error and
-        ``config.hand_eye_offset``) and true intrinsics."""
+        ``config.hand_eye_offset``) and true intrinsics. With ``config.board`` the scene is
+        the table cleared for that calibration board (:mod:`drivers.mock.board`)."""
         profile: MockProfile = config.profile
         true = true_mount(config.truth_mount or model.mount, profile, config.seed,
                           config.hand_eye_offset)
@@ -109,6 +110,10 @@ class MockCamera(Camera):
             from drivers.mock.desk import scene_for
 
             scene = scene_for(profile.scene, config.seed)
+        if config.board is not None:
+            from drivers.mock.board import calibration_scene
+
+            scene = calibration_scene(config.board, scene, config.seed)
         truth = {"profile": profile.name, "T_flange_camera": T_flange_true.tolist(),
                  "K": true_intr.K.tolist(), "dist": true_intr.dist.tolist(),
                  "hand_eye_offset": list(config.hand_eye_offset or ())}

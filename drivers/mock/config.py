@@ -78,12 +78,14 @@ class MockCameraConfig(_MockShared):
     """The ray-cast camera. ``scene`` (a :class:`drivers.mock.scene.Scene`) replaces the
     profile's scene. ``truth_mount`` (a CameraMount): the mount the profile's camera errors are
     applied to when it is not the one the software uses (a benchmark that hands the software a
-    perfectly calibrated camera)."""
+    perfectly calibrated camera). ``board`` (an ``armstereo.calibration.board.Board``): lay
+    that calibration board on the table, cleared of objects (``armstereo calibrate`` sets it)."""
 
     _FAULT_KIND = "grab"
 
     scene: Any = None
     truth_mount: Any = None
+    board: Any = None
     noise: float = field(default=0.0, metadata=option(
         "--camera-noise", "mock camera: sensor noise sigma in grey levels", type=float))
     hand_eye_offset: Any = field(default=None, metadata=option(

@@ -47,6 +47,7 @@ MAX_SUPERSAMPLE = 4
 DEFAULT_LIGHT = (0.3, 0.2, 1.0)  # direction towards the light, base frame
 DEFAULT_AMBIENT = 0.45
 _UNDISTORT_TOL_PX = 0.01  # rays whose re-distorted pixel misses by more are dropped
+EDGE_STEP = 8.0  # grey levels between neighbouring pixels that mark a hard texture edge
 
 
 class Texture:
@@ -120,6 +121,9 @@ class Primitive(ABC):
         self.name = name
         self.specular = 0.0  # Blinn-Phong highlight strength (0 = matte), share of full white
         self.shininess = 40.0  # Blinn-Phong exponent: larger = smaller, sharper highlights
+        # Rays per pixel side where this primitive's texture has a hard edge (a printed
+        # calibration board): 0 = band-limited texture, no edges to anti-alias.
+        self.edge_supersample = 0
 
     def glossy(self, specular: float, shininess: float = 40.0) -> Primitive:
         """Make the surface glossy (highlights that move with the viewpoint); returns self."""
@@ -131,7 +135,7 @@ class Primitive(ABC):
 
     def albedo(self, points_base: np.ndarray) -> np.ndarray:
         """BGR (3, N) float32 of the texture at surface points (3, N), base frame."""
-        if isinstance(self.texture, PhotoTexture):
+        if isinstance(self.texture, SurfaceTexture):
             dt = np.asarray(points_base).dtype
             R, t = self.T_local_base[:3, :3].astype(dt), self.T_local_base[:3, 3:].astype(dt)
             p_local = np.einsum("ij,jn->in", R, points_base) + t
@@ -531,12 +535,36 @@ class Scene:
         grid = _ray_grid(intrinsics)
         t, idx, blocks = self._cast(T, grid)
         img, normals = self._shade_grid(T, grid, t, idx, blocks)
+        edges = self._sharp_edge_pixels(img, idx)
         if s > 1:
-            rows, cols = np.nonzero(_aliasing_pixels(idx, normals, grid))
+            rows, cols = np.nonzero(_aliasing_pixels(idx, normals, grid) & ~edges)
             img[rows, cols] = self._supersample(T, *grid.subpixel_rays(rows, cols, s), s)
+        if edges.any():
+            s_edge = max(p.edge_supersample for p in self.primitives)
+            rows, cols = np.nonzero(edges)
+            img[rows, cols] = self._supersample(T, *grid.subpixel_rays(rows, cols, s_edge),
+                                                s_edge)
         bgr = np.clip(np.rint(img), 0, 255).astype(np.uint8)
         depth = np.where(np.isfinite(t), t, np.nan).astype(np.float32)
         return bgr, depth
+
+    def _sharp_edge_pixels(self, img: np.ndarray, idx: np.ndarray) -> np.ndarray:
+        """Boolean (H, W) mask of pixels near a hard texture edge of a primitive with
+        ``edge_supersample``: their colour differs from a 4-neighbour's by more than
+        EDGE_STEP grey levels. A centre sample there would put the edge on the pixel grid
+        (biasing the corners a detector finds by up to half a pixel)."""
+        sharp = [i for i, p in enumerate(self.primitives) if p.edge_supersample > 1]
+        if not sharp:
+            return np.zeros(idx.shape, dtype=bool)
+        on = np.isin(idx, sharp)
+        if not on.any():
+            return on
+        grey = img.mean(axis=2)
+        # An edge crossing a pixel always separates it from one of its 4-neighbours (the one
+        # along the edge normal's larger component), so the cross neighbourhood suffices.
+        k = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
+        spread = cv2.dilate(grey, k) - cv2.erode(grey, k)
+        return on & (spread > EDGE_STEP)
 
     def _cast(self, T_base_camera: np.ndarray, grid: _RayGrid):
         """z-buffer over the ray grid: ray parameter (= z-depth), primitive index, and the grid
@@ -618,7 +646,16 @@ def _highlight(prim: Primitive, p: np.ndarray, n: np.ndarray, light: np.ndarray,
     return (np.float32(255.0 * prim.specular) * spec.astype(np.float32))[None, :].repeat(3, 0)
 
 
-class PhotoTexture:
+class SurfaceTexture(ABC):
+    """A texture defined on a primitive's surface coordinates (s, t) in metres
+    (:meth:`Primitive.surface_coords`) instead of on 3D points."""
+
+    @abstractmethod
+    def sample(self, s: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """BGR (3, N) float32 at surface coordinates (s, t) (metres, arrays of N)."""
+
+
+class PhotoTexture(SurfaceTexture):
     """A photograph on a surface: colour at surface coordinates (s, t) in metres
     (:meth:`Primitive.surface_coords`), the image tiled with ``pixel_size`` metres per pixel,
     bilinear. A grey image is tinted: ``tint_bgr`` (3 factors, 1 = keep grey). ``gain`` and

@@ -50,6 +50,8 @@ BASELINES: dict[str, list[str]] = {
     "fuse": ["fuse", "{sample}", "--out", "{out}", "--voxel", "0.01"],
     "scan": ["scan", "--target=-0.45,-0.13,0.03", "--baseline", "0.06", "--views", "ring:1",
              "--out", "{out}.mcap"],
+    "calibrate": ["calibrate", "--board", "chessboard:17x12:0.016", "--out", "{out}.toml",
+                  "--dry-run"],
 }
 
 
