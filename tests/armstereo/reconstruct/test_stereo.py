@@ -152,26 +152,33 @@ def test_masked_pixels_get_no_disparity():
 def test_no_worker_threads_left_running():
     """Rows run on short-lived Python threads, not on numba's parallel layer, whose OpenMP
     workers would stay behind spinning and slow the OpenCV/numpy stages that follow. A fresh
-    process, so that no earlier call has started such workers already; OpenCV's own pool is
-    started first, since the matcher's filters use it as any OpenCV stage does."""
+    process, so that no earlier call has started such workers: numba's threading layer must
+    never start, no Python thread may outlive the call, and a second call adds no native
+    thread (the first one may start OpenCV's own pool, which every OpenCV stage shares)."""
     code = (
-        "import os, cv2, numpy as np\n"
+        "import os, threading, time, numba, numpy as np\n"
         "from armstereo.reconstruct.stereo import birchfield\n"
         "img = np.random.default_rng(0).integers(0, 255, (40, 80), dtype=np.uint8)\n"
-        # OpenCV's own worker pool (any caller's OpenCV work starts it) is not the matcher's
-        "cv2.medianBlur(np.zeros((480, 640), np.float32), 5)\n"
-        "before = len(os.listdir('/proc/self/task'))\n"
-        "birchfield(img, img, 8, threads=2)\n"
+        "def settled(before):\n"
         # a joined thread can still be listed for a moment while the OS reaps it
-        "import time\n"
-        "for _ in range(100):\n"
-        "    if len(os.listdir('/proc/self/task')) <= before: break\n"
-        "    time.sleep(0.01)\n"
-        "print(before, len(os.listdir('/proc/self/task')))\n")
+        "    for _ in range(100):\n"
+        "        if len(os.listdir('/proc/self/task')) <= before: break\n"
+        "        time.sleep(0.01)\n"
+        "    return len(os.listdir('/proc/self/task'))\n"
+        "birchfield(img, img, 8, threads=2)\n"
+        "first = settled(0)\n"
+        "birchfield(img, img, 8, threads=2)\n"
+        "try:\n"
+        "    layer = numba.threading_layer()\n"
+        "except ValueError:\n"
+        "    layer = 'none'\n"
+        "print(first, settled(first), threading.active_count(), layer)\n")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           timeout=300, check=True)
-    before, after = proc.stdout.split()
-    assert after == before
+    first, second, python_threads, layer = proc.stdout.split()
+    assert layer == "none"
+    assert python_threads == "1"
+    assert second == first
 
 
 # --- bad input ------------------------------------------------------------------------------
