@@ -21,6 +21,7 @@ from tests.support.images import texture
 # Measured 4.51 % (bench/results/stereo.md); the bound leaves room for tie-breaking changes,
 # not for a broken matcher.
 TSUKUBA_BAD2_BOUND = 0.06
+THREAD_EXIT_S = 5.0  # how long a finished worker thread may take to leave /proc/self/task
 
 
 def shifted_pair(d0, *, shape=(60, 120), seed=0, channels=1):
@@ -149,19 +150,31 @@ def test_masked_pixels_get_no_disparity():
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="counts threads in /proc")
 def test_no_worker_threads_left_running():
     """Rows run on short-lived Python threads, not on numba's parallel layer, whose OpenMP
-    workers would stay behind spinning and slow the OpenCV/numpy stages that follow. A fresh
-    process, so that no earlier call has started such workers already."""
+    workers would stay behind spinning and slow the OpenCV/numpy stages that follow.
+
+    A fresh process, so that no earlier call has started such workers already. Independent of
+    the numba cache: a single-threaded call compiles the kernels first (whatever compiling
+    starts is counted before), and numba's own flag says whether its parallel layer was
+    launched. A joined thread may still be listed for a moment while the system tears it
+    down, so the count gets a few seconds to settle; workers that stay never leave."""
     code = (
-        "import os, numpy as np\n"
+        "import os, time, numpy as np\n"
+        "import numba.np.ufunc.parallel as parallel\n"
         "from armstereo.reconstruct.stereo import birchfield\n"
         "img = np.random.default_rng(0).integers(0, 255, (40, 80), dtype=np.uint8)\n"
-        "before = len(os.listdir('/proc/self/task'))\n"
+        "tasks = lambda: len(os.listdir('/proc/self/task'))\n"
+        "birchfield(img[:4], img[:4], 8, threads=1)\n"
+        "before = tasks()\n"
         "birchfield(img, img, 8, threads=2)\n"
-        "print(before, len(os.listdir('/proc/self/task')))\n")
+        f"deadline = time.monotonic() + {THREAD_EXIT_S}\n"
+        "while tasks() > before and time.monotonic() < deadline:\n"
+        "    time.sleep(0.01)\n"
+        "print(before, tasks(), bool(getattr(parallel, '_is_initialized', False)))\n")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           timeout=300, check=True)
-    before, after = proc.stdout.split()
+    before, after, launched = proc.stdout.split()
     assert after == before
+    assert launched == "False"
 
 
 # --- bad input ------------------------------------------------------------------------------
