@@ -161,6 +161,7 @@ class FakeWriter:
         self.rig = rig
         self.views: list[dict] = []
         self.pairs: list[tuple[int, int, int]] = []
+        self.baselines: list[tuple[float, float, str]] = []
 
     def write_calibration(self, intrinsics, t_ns):
         self.rig.enter("writer.write_calibration")
@@ -173,6 +174,7 @@ class FakeWriter:
     def write_pair(self, pair, left_view, right_view, commanded, achieved, direction):
         self.rig.enter("writer.write_pair", (pair, left_view, right_view))
         self.pairs.append((pair, left_view, right_view))
+        self.baselines.append((commanded, achieved, direction))
 
 
 def make_plan(pairs: int = 2, baseline: float = 0.05, direction: str = "x", **kw):
@@ -320,6 +322,26 @@ def test_recorded_pairs_name_consecutive_views_left_then_right():
     rig = Rig()
     rig.run(make_plan(pairs=3))
     assert rig.writer.pairs == [(0, 0, 1), (1, 1, 2), (2, 2, 3)]
+
+
+@pytest.mark.parametrize("direction", ["x", "-y", "1,1,0.8"])
+def test_pairs_report_the_commanded_and_the_achieved_camera_baseline(direction):
+    """The achieved baseline is the distance between the recorded camera positions (forward
+    kinematics of the joints read at each shot), in 3D; the mock arm's joint noise makes it
+    differ from the commanded one."""
+    rig = Rig()
+    rig.arm.joint_noise = 2e-4
+    plan = make_plan(pairs=2, baseline=0.06, direction=direction)
+    result = rig.run(plan)
+    T_fc = model().mount.T_flange_camera
+    cams = [(v["T"] @ T_fc)[:3, 3] for v in rig.writer.views]
+    for k, (pr, written) in enumerate(zip(result.pairs, rig.writer.baselines, strict=True)):
+        achieved = float(np.linalg.norm(cams[k + 1] - cams[k]))
+        assert (pr.pair, pr.left_view, pr.right_view) == (k, k, k + 1)
+        assert pr.commanded_m == written[0] == 0.06
+        assert pr.achieved_m == pytest.approx(achieved, abs=1e-12) and written[1] == pr.achieved_m
+        assert abs(pr.achieved_m - 0.06) > 1e-7  # the noise is there, so this is no copy
+        assert written[2] == plan.settings.direction_label
 
 
 def test_the_arm_returns_to_the_start_and_ends_at_rest():
