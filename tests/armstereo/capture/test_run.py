@@ -247,6 +247,23 @@ def test_mock_arm_faults_end_with_a_stop_request(fault):
     assert rig.sites()[-1] == "arm.stop"
 
 
+def test_a_stuck_move_is_abandoned_within_the_plans_time_and_the_arm_stopped():
+    """The loop gives every move the whole plan's estimated time plus a margin, no more: a
+    move that never arrives ends in MotionTimeout and a stop by then."""
+    from armstereo.capture.run import MOVE_TIMEOUT_MARGIN_S
+    from drivers.mock.faults import FaultPlan
+
+    rig = Rig()
+    rig.arm.faults = FaultPlan.parse(["stuck-move@2"])
+    plan = make_plan(pairs=2)
+    with pytest.raises(MotionTimeout):
+        rig.run(plan)
+    moves = [t for s, t, _ in rig.log if s == "arm.move_linear"]
+    stop = next(t for s, t, _ in rig.log if s == "arm.stop")
+    waited = (stop - moves[-1]) * 1e-9
+    assert plan.duration_s <= waited <= plan.duration_s + MOVE_TIMEOUT_MARGIN_S + 1e-6
+
+
 # --- the checks before each shot ------------------------------------------------------------
 
 def shots(rig: Rig) -> list[list[tuple[str, int, object]]]:

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import os
 import signal
+import threading
 from functools import cache
 
 import numpy as np
@@ -134,6 +135,20 @@ def test_sigterm_is_an_interrupt_inside_and_handled_as_before_outside(own_sigter
         assert isinstance(outcome(sigterm), KeyboardInterrupt)
     assert signal.getsignal(signal.SIGTERM) is own_sigterm
     assert isinstance(outcome(sigterm), Unhandled)
+
+
+def test_outside_the_main_thread_sigterm_is_left_alone():
+    """Python lets only the main thread set signal handlers; a capture run from another thread
+    (an application's worker) goes ahead without the SIGTERM hook instead of failing."""
+    outcomes = []
+
+    def worker():
+        outcomes.append(outcome(lambda: sigterm_as_interrupt().__enter__()))
+
+    thread = threading.Thread(target=worker)
+    thread.start()
+    thread.join()
+    assert outcomes == [None]
 
 
 @pytest.mark.parametrize("method", ["write_view", "write_pair"])
