@@ -45,7 +45,10 @@ REPORT = ROOT / "bench" / "results" / "mutation.md"
 RESULTS = ROOT / "bench" / "results" / "mutation"
 EQUIVALENT = ROOT / "bench" / "mutation_equivalent.toml"
 NICENESS = 10
-TIMEOUT_S = 600  # per mutant; a mutant that hangs the tests counts as killed
+# A mutant whose tests take longer than this many times the unmutated run (at least
+# MIN_TIMEOUT_S) hangs them, and counts as killed: a loop that never ends is caught.
+TIMEOUT_FACTOR = 4
+MIN_TIMEOUT_S = 60
 
 # Replacements into operators the code never uses on these numbers (shifts, bit operations,
 # powers, modulo, floor division) are always caught by any test that reaches the line and cost
@@ -87,7 +90,8 @@ TARGETS = [
             "tests/armstereo/capture/test_run.py"),
            ("stop", "close", "wait_until_steady", "_execute", "_fail", "_halted",
             "_require_link", "_require_ready", "_check_positive"), kind="safety"),
-    Target("ur-arm", "drivers/ur/arm.py", ("tests/drivers/ur/test_arm.py",),
+    Target("ur-arm", "drivers/ur/arm.py",
+           ("tests/drivers/ur/test_arm.py", "tests/drivers/ur/test_arm_stop.py"),
            ("close", "move_linear", "move_joints", "wait_until_steady", "stop", "_move",
             "_await_motion", "_verify_reached", "_stop_quietly", "_quiet_call", "_check_link",
             "_raise_if_stopped", "_check_cap", "_check_timeout"), kind="safety"),
@@ -185,13 +189,25 @@ def _warm_up(copy: Path) -> None:
                    env=_env(), check=True)
 
 
-def _config(copy: Path, target: Target) -> Path:
+def _baseline(copy: Path, target: Target) -> float:
+    """Run the target's tests on the unmutated copy: they must pass (else every mutant would
+    look killed); returns their wall time (s)."""
+    started = time.monotonic()
+    proc = subprocess.run(["nice", "-n", str(NICENESS), *_test_command(target).split()],
+                          cwd=copy, env=_env(), capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise SystemExit(f"{target.name}: the tests fail without any mutant:\n"
+                         f"{proc.stdout[-3000:]}")
+    return time.monotonic() - started
+
+
+def _config(copy: Path, target: Target, timeout: float) -> Path:
     path = copy / f"mutation-{target.name}.toml"
     excluded = ", ".join(f"'{e}'" for e in EXCLUDED_OPERATORS)
     path.write_text(
         "[cosmic-ray]\n"
         f"module-path = \"{target.module}\"\n"
-        f"timeout = {TIMEOUT_S}\n"
+        f"timeout = {timeout:.0f}\n"
         "excluded-modules = []\n"
         f"test-command = \"{_test_command(target)}\"\n\n"
         "[cosmic-ray.distributor]\nname = \"local\"\n\n"
@@ -208,7 +224,8 @@ def _run_target(copy: Path, target: Target, sample: int | None, seed: int) -> di
     from cosmic_ray.work_db import WorkDB, use_db
     from cosmic_ray.work_item import TestOutcome, WorkerOutcome, WorkResult
 
-    config = _config(copy, target)
+    baseline = _baseline(copy, target)
+    config = _config(copy, target, max(MIN_TIMEOUT_S, TIMEOUT_FACTOR * baseline))
     db = copy / f"mutation-{target.name}.sqlite"
     _cosmic_ray(copy, "init", str(config), str(db))
     excluded = re.compile("|".join(EXCLUDED_OPERATORS))
@@ -249,7 +266,8 @@ def _run_target(copy: Path, target: Target, sample: int | None, seed: int) -> di
     return dict(target=target.name, kind=target.kind, module=target.module,
                 tests=list(target.tests), rows=sorted(rows, key=lambda r: (r["line"],
                                                                           r["operator"])),
-                elapsed=elapsed, selected=len(keep), sample=sample, seed=seed,
+                elapsed=elapsed, baseline_s=baseline, selected=len(keep), sample=sample,
+                seed=seed,
                 log_only=log_only, date=time.strftime("%Y-%m-%d"))
 
 
