@@ -3,6 +3,7 @@
     python bench/mutation.py                       # every target, then the report
     python bench/mutation.py --target plan run     # some targets only (the report keeps the rest)
     python bench/mutation.py --sample 40 --seed 1  # at most 40 random mutants per accuracy target
+    python bench/mutation.py --survivors           # re-test only the kept survivors (new tests)
     python bench/mutation.py --report-only         # rewrite the report (e.g. new explanations)
     python bench/mutation.py --list                # the targets, their functions and tests
 
@@ -135,9 +136,15 @@ def main(argv: list[str] | None = None) -> int:
             copy = _copy_repository(Path(tmp) / "repo")
             _warm_up(copy)
             for target in targets:
-                sample = args.sample if target.kind == "accuracy" else None
-                result = _run_target(copy, target, sample, args.seed)
-                (RESULTS / f"{target.name}.json").write_text(json.dumps(result, indent=1))
+                kept = RESULTS / f"{target.name}.json"
+                if args.survivors:
+                    if not kept.exists():
+                        continue
+                    result = _retest_survivors(copy, target, json.loads(kept.read_text()))
+                else:
+                    sample = args.sample if target.kind == "accuracy" else None
+                    result = _run_target(copy, target, sample, args.seed)
+                kept.write_text(json.dumps(result, indent=1))
                 _write_report(REPORT)
     _write_report(REPORT)
     print(f"report: {REPORT.relative_to(ROOT)}")
@@ -150,6 +157,8 @@ def _parse(argv):
     p.add_argument("--sample", type=int, default=None,
                    help="at most this many mutants per accuracy target, drawn with --seed")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--survivors", action="store_true",
+                   help="re-test only the survivors of the kept results (after adding tests)")
     p.add_argument("--report-only", action="store_true",
                    help="only rewrite the report from the kept results")
     p.add_argument("--list", action="store_true", help="list the targets and stop")
@@ -220,7 +229,23 @@ def _cosmic_ray(copy: Path, *args: str) -> None:
                    cwd=copy, env=_env(), check=True)
 
 
-def _run_target(copy: Path, target: Target, sample: int | None, seed: int) -> dict:
+def _retest_survivors(copy: Path, target: Target, kept: dict) -> dict:
+    """Run the survivors of ``kept`` again (killed mutants stay killed while tests are only
+    added) and mark those now killed."""
+    survivors = {(r["operator"], r["line"]) for r in kept["rows"] if not r["killed"]}
+    if not survivors:
+        return kept
+    again = _run_target(copy, target, None, kept["seed"], only=survivors)
+    killed_now = {r["diff"] for r in again["rows"] if r["killed"]}
+    for row in kept["rows"]:
+        if not row["killed"] and row["diff"] in killed_now:
+            row["killed"] = True
+    kept["retested"] = f"{len(again['rows'])} survivors on {again['date']}"
+    return kept
+
+
+def _run_target(copy: Path, target: Target, sample: int | None, seed: int,
+                only: set[tuple[str, int]] | None = None) -> dict:
     from cosmic_ray.work_db import WorkDB, use_db
     from cosmic_ray.work_item import TestOutcome, WorkerOutcome, WorkResult
 
@@ -242,7 +267,8 @@ def _run_target(copy: Path, target: Target, sample: int | None, seed: int) -> di
             if m.start_pos[0] in logging_lines:
                 log_only += 1
                 continue
-            keep.append(item)
+            if only is None or (m.operator_name, m.start_pos[0]) in only:
+                keep.append(item)
         if sample is not None and len(keep) > sample:
             keep = random.Random(f"{seed}:{target.name}").sample(keep, sample)
         kept = {item.job_id for item in keep}
@@ -322,7 +348,8 @@ def _write_report(path: Path) -> None:
         sample = f"{res['sample']} (seed {res['seed']})" if res["sample"] else "all"
         lines.append(f"| {res['target']} | {res['kind']} | `{res['module']}` | {len(rows)} | "
                      f"{sample} | {killed} | {n_eq} | {len(survivors) - n_eq} | {share} | "
-                     f"{res['log_only']} | {res['elapsed'] / 60:.0f} min | {res['date']} |")
+                     f"{res['log_only']} | {res['elapsed'] / 60:.0f} min | {res['date']}"
+                     + (f"; re-tested {res['retested']}" if res.get("retested") else "") + " |")
         if survivors:
             details += [f"## {res['target']}: survivors", ""]
             for r, why in explained:
