@@ -40,3 +40,26 @@ def test_a_stop_without_a_link_never_raises_and_says_so(model, how):
             arm.move_linear(T, 0.05, 0.25)
     arm.stop()
     assert arm.history[-1][0] == "stop" and arm.events[-1] == UNREACHED
+
+
+def test_a_closed_arm_is_disconnected_and_can_connect_again(model):
+    arm = MockArm(model, table_start(model))
+    arm.connect()
+    arm.close()
+    assert not arm.is_connected and arm.status().state.value == "disconnected"
+    arm.connect()
+    assert arm.is_connected and arm.status().ok
+
+
+def test_a_stuck_move_gives_up_exactly_at_the_callers_timeout(model):
+    """Also when the timeout is shorter than the time to the point where the move sticks."""
+    from armstereo.errors import MotionTimeout
+
+    arm = MockArm(model, table_start(model), faults=FaultPlan.parse(["stuck-move@1"]))
+    arm.connect()
+    T = model.flange_pose(arm.joint_positions())
+    T[0, 3] += 0.1  # 2.2 s at 0.05 m/s; it would stick at 1.1 s
+    start = arm.clock.now()
+    with pytest.raises(MotionTimeout):
+        arm.move_linear(T, 0.05, 0.25, timeout=0.5)
+    assert arm.clock.now() - start == pytest.approx(0.5, abs=1e-9)
