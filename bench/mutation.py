@@ -142,7 +142,7 @@ def main(argv: list[str] | None = None) -> int:
                         continue
                     result = _retest_survivors(copy, target, json.loads(kept.read_text()))
                 else:
-                    sample = args.sample if target.kind == "accuracy" else None
+                    sample = args.sample if target.kind == "accuracy" else args.sample_safety
                     result = _run_target(copy, target, sample, args.seed)
                 kept.write_text(json.dumps(result, indent=1))
                 _write_report(REPORT)
@@ -156,6 +156,9 @@ def _parse(argv):
     p.add_argument("--target", nargs="*", choices=[t.name for t in TARGETS])
     p.add_argument("--sample", type=int, default=None,
                    help="at most this many mutants per accuracy target, drawn with --seed")
+    p.add_argument("--sample-safety", type=int, default=None,
+                   help="also thin the safety targets to this many mutants (a quick look; the "
+                        "goal there needs the full run)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--survivors", action="store_true",
                    help="re-test only the survivors of the kept results (after adding tests)")

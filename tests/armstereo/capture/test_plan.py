@@ -18,12 +18,18 @@ from functools import cache
 
 import numpy as np
 import pytest
-from hypothesis import assume, given
+from hypothesis import assume, example, given
 from hypothesis import settings as hyp_settings
 from hypothesis import strategies as st
 
 from armstereo.capture import CaptureSettings, Workspace, plan_capture
-from armstereo.capture.plan import MAX_SAMPLE_JUMP_RAD, MIN_ANGLE_TO_OPTICAL_AXIS_DEG
+from armstereo.capture.plan import (
+    MAX_BASELINE_M,
+    MAX_PAIRS,
+    MAX_SAMPLE_JUMP_RAD,
+    MIN_ANGLE_TO_OPTICAL_AXIS_DEG,
+    validate_settings,
+)
 from armstereo.devices import (
     MAX_JOINT_ACCELERATION,
     MAX_JOINT_SPEED,
@@ -32,7 +38,7 @@ from armstereo.devices import (
     MotionLimits,
     trapezoid_duration,
 )
-from armstereo.errors import IKError, PreflightError
+from armstereo.errors import ConfigError, IKError, PreflightError
 from armstereo.kinematics import ArmModel
 from drivers.mock.start_poses import table_start
 from tests.support.properties import examples
@@ -182,6 +188,11 @@ def test_a_plan_that_passes_keeps_flange_and_camera_inside_the_workspace(case, s
         assert inside, plan.describe()
     if path.reachable:
         assert check(plan, "workspace").ok == inside
+        if not inside:  # the refusal names a point that really is outside
+            named = np.array([float(v) for v in check(plan, "workspace").detail.split("(")[1]
+                              .split(")")[0].split(",")])
+            outside = points[~(np.all(points >= lo, axis=1) & np.all(points <= hi, axis=1))]
+            assert np.abs(outside - named).max(axis=1).min() <= 0.0005
 
 
 @hyp_settings(max_examples=examples(25))
@@ -226,6 +237,28 @@ def test_unreachable_paths_are_refused(case):
     with pytest.raises(PreflightError, match="nothing moved"):
         plan.require_ok()
     assert all(np.isnan(q).all() for q in plan.q_views[-1:])
+
+
+@hyp_settings(max_examples=examples(40))
+@example(baseline=0.1, pairs=MAX_PAIRS, settle=0.0)  # every limit itself is allowed
+@example(baseline=MAX_BASELINE_M, pairs=1, settle=0.0)
+@example(baseline=0.0, pairs=1, settle=0.5)
+@example(baseline=0.1, pairs=0, settle=0.5)
+@example(baseline=0.1, pairs=MAX_PAIRS + 1, settle=0.5)
+@example(baseline=0.1, pairs=1, settle=-0.01)
+@given(baseline=st.one_of(st.floats(-1.0, 1.0), st.sampled_from([0.0, MAX_BASELINE_M])),
+       pairs=st.integers(-2, MAX_PAIRS + 2), settle=st.floats(-1.0, 2.0))
+def test_settings_out_of_range_are_refused_before_planning(baseline, pairs, settle):
+    s = CaptureSettings(baseline=baseline, direction=unit([1, 0, 0]), pairs=pairs,
+                        settle_s=settle)
+    valid = 0 < baseline <= MAX_BASELINE_M and 1 <= pairs <= MAX_PAIRS and settle >= 0
+    if valid:
+        validate_settings(s)
+    else:
+        with pytest.raises(ConfigError):
+            validate_settings(s)
+        with pytest.raises(ConfigError):
+            plan_capture(arm(), table_start(arm()), s)
 
 
 # --- speed and acceleration caps ------------------------------------------------------------
