@@ -197,3 +197,18 @@ def test_close_never_raises_even_when_the_receive_side_fails(arm, ctl, monkeypat
     monkeypatch.setattr(type(arm._rr), "disconnect", broken)
     arm.close()
     assert not arm.is_connected
+
+
+def test_a_move_ending_off_target_says_how_far(arm, ctl, monkeypatch):
+    real = type(ctl).progress
+
+    def short_by_12_3_mm(self):
+        moving = self.motion is not None
+        value = real(self)
+        if moving and self.motion is None and self.tcp_pose is not None:
+            self.tcp_pose = self.tcp_pose + np.r_[0.0123, 0, 0, 0, 0, 0]
+        return value
+
+    monkeypatch.setattr(type(ctl), "progress", short_by_12_3_mm)
+    with pytest.raises(HardwareError, match=r"ended 12\.30 mm / 0\.00 deg"):
+        arm.move_linear(TARGET, 0.05, 0.25, timeout=5.0)
