@@ -163,3 +163,34 @@ def test_the_left_right_check_uses_each_images_own_mask(d0, left_cut, right_cut,
     assert np.isnan(disp[~lmask]).all()
     ys, xl = np.nonzero(np.isfinite(disp))
     assert rmask[ys, xl - disp[ys, xl].astype(int)].all()
+
+
+def test_the_left_right_check_allows_one_pixel_as_documented(monkeypatch):
+    """docs §8: the mirrored match may disagree by one pixel, not more."""
+    import armstereo.reconstruct.stereo as stereo
+
+    seen = []
+    real = stereo.left_right_mismatch
+
+    def spy(disp_l, disp_r, dmin, tolerance):
+        seen.append(tolerance)
+        return real(disp_l, disp_r, dmin, tolerance)
+
+    monkeypatch.setattr(stereo, "left_right_mismatch", spy)
+    left, right = shifted_pair(4, shape=(10, 40))
+    birchfield(left, right, 8, lr_check=True)
+    assert seen == [1]
+
+
+def test_range_and_width_errors_name_the_numbers():
+    import pytest
+
+    from armstereo.errors import StereoError
+
+    img = np.zeros((4, 40), np.uint8)
+    with pytest.raises(StereoError, match="min_disparity \\+ max_disparity = 42 must be < the "
+                                          "image width 40"):
+        birchfield(img, img, 30, min_disparity=12)
+    wide = np.zeros((1, 40_000), np.uint8)
+    with pytest.raises(StereoError, match=r"\(1 channel\(s\) summed, occlusion penalty 25\)"):
+        birchfield(wide, wide, 8, occlusion_penalty=25)
