@@ -196,9 +196,12 @@ def test_a_plan_that_passes_keeps_flange_and_camera_inside_the_workspace(case, s
 
 
 @hyp_settings(max_examples=examples(25))
-@given(capture_cases(), fractions)
-def test_a_plan_that_passes_moves_no_joint_further_than_allowed(case, f):
+@given(capture_cases(), fractions, st.floats(0.002, 0.15))
+def test_a_plan_that_passes_moves_no_joint_further_than_allowed(case, f, path_step):
+    """Also with coarse path sampling (path_step is a setting), where a path may have only
+    two samples and large joint changes between them."""
     model, q0, s = case
+    s = replace(s, path_step=path_step)
     path = walk(model, q0, s)
     assume(path.reachable)
     jumps = np.abs(np.diff(path.qs, axis=0)).max()
@@ -268,7 +271,11 @@ CAPS = {"linear_speed": MAX_LINEAR_SPEED, "linear_acceleration": MAX_LINEAR_ACCE
 
 
 @hyp_settings(max_examples=examples(40))
-@given(st.sampled_from(sorted(CAPS)), st.floats(-0.5, 2.5, allow_nan=False), st.booleans())
+@example(field="linear_speed", factor=0.0, exact=False)  # zero: no motion profile exists
+@example(field="linear_acceleration", factor=0.0, exact=False)
+@example(field="linear_acceleration", factor=-0.5, exact=False)
+@given(field=st.sampled_from(sorted(CAPS)), factor=st.floats(-0.5, 2.5, allow_nan=False),
+       exact=st.booleans())
 def test_speeds_and_accelerations_over_the_caps_are_refused(field, factor, exact):
     """Every motion limit must lie in (0, cap]; the plan refuses anything else."""
     cap = CAPS[field]
@@ -280,6 +287,9 @@ def test_speeds_and_accelerations_over_the_caps_are_refused(field, factor, exact
     allowed = 0 < value <= cap
     assert check(plan, "speed caps").ok == allowed
     assert plan.ok == allowed
+    assert plan.describe()  # a refused plan still shows every check
+    if field.startswith("linear") and value <= 0:
+        assert plan.duration_s == math.inf  # no motion profile: no finite estimate
     if not allowed:
         with pytest.raises(PreflightError, match="speed caps"):
             plan.require_ok()
