@@ -213,6 +213,8 @@ def test_a_plan_that_passes_moves_no_joint_further_than_allowed(case, f, path_st
     if plan.ok:
         assert travel <= limit and jumps <= MAX_SAMPLE_JUMP_RAD
     assert check(plan, "joint travel").ok == (travel <= limit)
+    assert f"{len(path.qs)} samples every {path_step * 1000:.0f} mm" in \
+        check(plan, "IK along the path").detail
     assert check(plan, "path continuity").ok == (jumps <= MAX_SAMPLE_JUMP_RAD)
     for q_plan, q_path in zip(plan.q_views, path.view_qs, strict=True):
         np.testing.assert_allclose(q_plan, q_path, atol=1e-12)
@@ -237,6 +239,9 @@ def test_unreachable_paths_are_refused(case):
     plan = plan_capture(model, q0, s)
     assert not path.reachable
     assert not plan.ok and not check(plan, "IK along the path").ok
+    named = [float(v) for v in check(plan, "IK along the path").detail.split("(")[1]
+             .split(")")[0].split(",")]
+    np.testing.assert_allclose(named, path.flanges[-1], atol=0.0005)  # the first failing one
     with pytest.raises(PreflightError, match="nothing moved"):
         plan.require_ok()
     assert all(np.isnan(q).all() for q in plan.q_views[-1:])
@@ -262,6 +267,19 @@ def test_settings_out_of_range_are_refused_before_planning(baseline, pairs, sett
             validate_settings(s)
         with pytest.raises(ConfigError):
             plan_capture(arm(), table_start(arm()), s)
+
+
+@pytest.mark.parametrize(("robot", "published_reach_m"), [("ur5e", 0.85), ("ur10e", 1.30),
+                                                         ("ur3e", 0.50)])
+def test_the_default_workspace_is_the_arms_reach_above_the_base_plane(robot, published_reach_m):
+    """Workspace.around: the stretched arm's flange distance (q = 0) in x and y, from z_min up
+    to it; that distance is within 10 % of the published reach (UR data sheets)."""
+    model = arm(robot)
+    reach = float(np.linalg.norm(model.flange_pose(np.zeros(6))[:3, 3]))
+    box = Workspace.around(model, z_min=0.05)
+    np.testing.assert_allclose(box.hi, (reach, reach, reach), rtol=1e-12)
+    np.testing.assert_allclose(box.lo, (-reach, -reach, 0.05), rtol=1e-12)
+    assert abs(reach - published_reach_m) < 0.1 * published_reach_m
 
 
 # --- speed and acceleration caps ------------------------------------------------------------
