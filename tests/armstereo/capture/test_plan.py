@@ -234,7 +234,7 @@ def test_a_plan_that_passes_moves_sideways_to_the_optical_axis(case):
 @given(capture_cases())
 def test_unreachable_paths_are_refused(case):
     model, q0, s = case
-    s = replace(s, baseline=0.45, pairs=3)  # 1.35 m: longer than any UR's reach
+    s = replace(s, baseline=MAX_BASELINE_M, pairs=6)  # 3 m: more than any UR's reach across
     path = walk(model, q0, s)
     plan = plan_capture(model, q0, s)
     assert not path.reachable
