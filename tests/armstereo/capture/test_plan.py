@@ -195,6 +195,22 @@ def test_a_plan_that_passes_keeps_flange_and_camera_inside_the_workspace(case, s
             assert np.abs(outside - named).max(axis=1).min() <= 0.0005
 
 
+@pytest.mark.parametrize("direction", [(1, 0, 0), (0, -1, 0), (1, 1, 0.5)])
+def test_a_floor_between_camera_and_flange_is_refused(direction):
+    """Looking down, the camera hangs below the flange: a box floor between the two must
+    refuse the plan (the camera would leave the box into the table), one just below the
+    camera must not."""
+    model = arm()
+    q0 = table_start(model)
+    s = CaptureSettings(baseline=0.05, direction=unit(direction), pairs=2)
+    path = walk(model, q0, s)
+    assert path.cameras[:, 2].max() < path.flanges[:, 2].min()
+    for floor, ok in ((path.cameras[:, 2].max() + 0.005, False),
+                      (path.cameras[:, 2].min() - 0.005, True)):
+        box = Workspace((-2.0, -2.0, floor), (2.0, 2.0, 2.0))
+        assert check(plan_capture(model, q0, replace(s, workspace=box)), "workspace").ok == ok
+
+
 @hyp_settings(max_examples=examples(25))
 @given(capture_cases(), fractions, st.floats(0.002, 0.15))
 def test_a_plan_that_passes_moves_no_joint_further_than_allowed(case, f, path_step):
@@ -280,6 +296,9 @@ def test_the_default_workspace_is_the_arms_reach_above_the_base_plane(robot, pub
     box = Workspace.around(model, z_min=0.05)
     np.testing.assert_allclose(box.hi, (reach, reach, reach), rtol=1e-12)
     np.testing.assert_allclose(box.lo, (-reach, -reach, 0.05), rtol=1e-12)
+    default = Workspace.around(model)  # keeps the camera above the base plane (the table)
+    assert not default.contains(np.array([0.3, 0.3, -0.001]))
+    assert default.contains(np.array([0.3, 0.3, 0.3]))
     assert abs(reach - published_reach_m) < 0.1 * published_reach_m
 
 
