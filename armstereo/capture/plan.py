@@ -363,6 +363,8 @@ def _check_travel(q_views: list[np.ndarray], s: CaptureSettings) -> Check:
 
 def _estimate_duration(s: CaptureSettings, n_views: int) -> float:
     lim = s.limits
+    if not (lim.linear_speed > 0 and lim.linear_acceleration > 0):
+        return math.inf  # the speed-caps check refuses such a plan; describe() still works
     move = trapezoid_duration(s.baseline, lim.linear_speed, lim.linear_acceleration)
     back = trapezoid_duration(s.baseline * s.pairs, lim.linear_speed, lim.linear_acceleration)
     return (n_views - 1) * move + back + n_views * s.settle_s

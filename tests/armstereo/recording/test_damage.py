@@ -195,7 +195,10 @@ def test_image_bombs_and_undecodable_images_are_recording_errors(tmp_path):
 
 
 WRITER_LOOP = textwrap.dedent("""
-    import sys, time
+    import signal, sys, time
+    # Ctrl-C handled as Python does by default, even when the test runner started with SIGINT
+    # ignored (nohup, background jobs): a child inherits an ignored signal.
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     sys.path.insert(0, sys.argv[2])
     from tests.support.recordings import JOINTS, small_intrinsics, synthetic_views
     from armstereo.recording import RecordingWriter

@@ -270,7 +270,16 @@ def test_a_failed_finish_still_leaves_every_view_readable(tmp_path):
     assert [v.index for v in rec.views] == [0, 1] and rec.lost[0].startswith("the file ends")
 
 
-def test_signals_during_a_write_are_delivered_after_it():
+@pytest.fixture
+def python_sigint():
+    """Python's own Ctrl-C handler for the test, whatever pytest started with (SIGINT is
+    ignored under nohup and in background jobs); the previous handler is restored after."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, previous)
+
+
+def test_signals_during_a_write_are_delivered_after_it(python_sigint):
     with pytest.raises(KeyboardInterrupt):
         with _signals_deferred():
             os.kill(os.getpid(), signal.SIGINT)
