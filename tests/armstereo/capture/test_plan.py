@@ -315,19 +315,23 @@ CAPS = {"linear_speed": MAX_LINEAR_SPEED, "linear_acceleration": MAX_LINEAR_ACCE
 @given(field=st.sampled_from(sorted(CAPS)), factor=st.floats(-0.5, 2.5, allow_nan=False),
        exact=st.booleans())
 def test_speeds_and_accelerations_over_the_caps_are_refused(field, factor, exact):
-    """Every motion limit must lie in (0, cap]; the plan refuses anything else."""
+    """Every motion limit must lie in (0, cap]: zero or less is malformed (ConfigError before
+    any plan: no motion profile exists), over the cap the plan's "speed caps" check refuses."""
     cap = CAPS[field]
     value = cap if exact else factor * cap  # the cap itself is allowed
     model = arm()
     s = CaptureSettings(baseline=0.02, direction=unit([1, 0, 0]),
                         limits=replace(MotionLimits(), **{field: value}))
+    if value <= 0:
+        with pytest.raises(ConfigError, match="must be > 0"):
+            plan_capture(model, table_start(model), s)
+        return
     plan = plan_capture(model, table_start(model), s)
-    allowed = 0 < value <= cap
+    allowed = value <= cap
     assert check(plan, "speed caps").ok == allowed
     assert plan.ok == allowed
     assert plan.describe()  # a refused plan still shows every check
-    if field.startswith("linear") and value <= 0:
-        assert plan.duration_s == math.inf  # no motion profile: no finite estimate
+    assert math.isfinite(plan.duration_s)
     if not allowed:
         with pytest.raises(PreflightError, match="speed caps"):
             plan.require_ok()
