@@ -234,7 +234,11 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
                                    subpixel_radius)
     if speckle_size > 0:
         _remove_speckles(disp, speckle_size, speckle_range)
-    return _clip_to_window(disp, min_disparity, max_disparity)
+    disp = _clip_to_window(disp, min_disparity, max_disparity)
+    # The median and the sub-pixel steps move disparities after matching: one may now point
+    # into the right image's fill or past its edge, which the programme itself never matches.
+    disp[_partner_invalid(disp, rmask)] = np.nan
+    return disp
 
 
 def _highpass(grey: np.ndarray, mask: np.ndarray, sigma: float, gain: float) -> np.ndarray:
@@ -377,6 +381,19 @@ def _remove_speckles(disp: np.ndarray, size: int, max_diff: float) -> None:
     fixed[ok] = np.rint(disp[ok] * 16).astype(np.int16)
     cv2.filterSpeckles(fixed, -1, int(size), int(round(max_diff * 16)))
     disp[fixed < 0] = np.nan
+
+
+def _partner_invalid(disp: np.ndarray, rmask: np.ndarray) -> np.ndarray:
+    """Left pixels whose right partner ``x - d`` (to the nearest whole pixel) lies outside
+    the right image or on a masked right pixel."""
+    ys, xs = np.nonzero(np.isfinite(disp))
+    partner = np.rint(xs - disp[ys, xs].astype(np.float64)).astype(np.intp)
+    inside = (partner >= 0) & (partner < disp.shape[1])
+    bad = ~inside
+    bad[inside] = ~rmask[ys[inside], partner[inside]]
+    out = np.zeros(disp.shape, bool)
+    out[ys[bad], xs[bad]] = True
+    return out
 
 
 def _clip_to_window(disp: np.ndarray, min_disparity: int, max_disparity: int) -> np.ndarray:

@@ -124,6 +124,13 @@ class LoggedArm(MockArm):
         self.rig.log.append(("arm.q", self.clock.now_ns(), q.copy()))
         return q
 
+    def joints_and_controller_pose(self):
+        # the loop reads the joints this way when the arm offers it (one RTDE package)
+        self.rig.enter("arm.joint_positions")
+        q, T = super().joints_and_controller_pose()
+        self.rig.log.append(("arm.q", self.clock.now_ns(), q.copy()))
+        return q, T
+
     def stop(self):
         self.rig.log.append(("arm.stop", self.clock.now_ns(), None))
         super().stop()
@@ -166,12 +173,14 @@ class FakeWriter:
     def write_calibration(self, intrinsics, t_ns):
         self.rig.enter("writer.write_calibration")
 
-    def write_view(self, view, frame, q, joint_names, T_base_flange, T_flange_camera, settle_s):
+    def write_view(self, view, frame, q, joint_names, T_base_flange, T_flange_camera, *,
+                   settle_s, controller_T_base_flange=None):
         self.rig.enter("writer.write_view", view)
         self.views.append(dict(view=view, frame=frame, q=np.array(q), T=T_base_flange,
-                               settle_s=settle_s))
+                               settle_s=settle_s, controller_T=controller_T_base_flange))
 
-    def write_pair(self, pair, left_view, right_view, commanded, achieved, direction):
+    def write_pair(self, pair, left_view, right_view, commanded, achieved, direction, *,
+                   viewpoint=None):
         self.rig.enter("writer.write_pair", (pair, left_view, right_view))
         self.pairs.append((pair, left_view, right_view))
         self.baselines.append((commanded, achieved, direction))
