@@ -158,7 +158,8 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
       not shift matches; ``"none"`` matches the intensities as the paper does. Grey only.
 
     Every returned disparity lies in ``[min_disparity, min_disparity + max_disparity]``. Left
-    pixels whose partner would lie left of the right image (the strip ``x < d``) are NaN.
+    pixels whose partner ``x - d`` (nearest pixel) would lie outside the right image (the strip
+    ``x < d``) or on a masked right pixel are NaN.
 
     Raises StereoError for unusable input (sizes, dtype, disparity range, masks, options).
     """
