@@ -37,6 +37,7 @@ MAX_PAIRS = 50
 MAX_SETTLE_S = 60.0  # longer than any arm needs to come to rest; larger values are typos
 # Rectification (Fusiello) degenerates when the camera moves along its optical axis.
 MIN_ANGLE_TO_OPTICAL_AXIS_DEG = 30.0
+UNIT_TOL = 1e-9  # how far from length 1 a baseline direction may be (rounding only)
 # A jump larger than this between IK samples 5 mm apart means a branch flip, not a smooth path.
 MAX_SAMPLE_JUMP_RAD = 0.15
 
@@ -238,6 +239,12 @@ def validate_settings(s: CaptureSettings) -> None:
     validate.positive(s.baseline, "--baseline", "m", cap=MAX_BASELINE_M)
     validate.whole(s.pairs, "--pairs", 1, MAX_PAIRS)
     validate.non_negative(s.settle_s, "--settle", "s", cap=MAX_SETTLE_S)
+    # The step is baseline * direction: a direction that is not a unit vector would move the
+    # arm by a different distance than the baseline asked for.
+    d = np.asarray(s.direction, dtype=float)
+    if d.shape != (3,) or not np.all(np.isfinite(d)) or abs(np.linalg.norm(d) - 1) > UNIT_TOL:
+        raise ConfigError(f"the baseline direction must be a camera-frame unit vector, got "
+                          f"{s.direction!r}")
     # Speeds must be numbers > 0 here (durations divide by them); their caps are a pre-flight
     # check, so a dry run shows them beside the others.
     lim = s.limits
@@ -362,9 +369,7 @@ def _check_travel(q_views: list[np.ndarray], s: CaptureSettings) -> Check:
 
 
 def _estimate_duration(s: CaptureSettings, n_views: int) -> float:
-    lim = s.limits
-    if not (lim.linear_speed > 0 and lim.linear_acceleration > 0):
-        return math.inf  # the speed-caps check refuses such a plan; describe() still works
+    lim = s.limits  # validate_settings has made sure speed and acceleration are > 0
     move = trapezoid_duration(s.baseline, lim.linear_speed, lim.linear_acceleration)
     back = trapezoid_duration(s.baseline * s.pairs, lim.linear_speed, lim.linear_acceleration)
     return (n_views - 1) * move + back + n_views * s.settle_s

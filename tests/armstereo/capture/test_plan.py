@@ -246,6 +246,24 @@ def test_a_plan_that_passes_moves_sideways_to_the_optical_axis(case):
     assert check(plan, "baseline direction").ok == (angle >= MIN_ANGLE_TO_OPTICAL_AXIS_DEG)
 
 
+@pytest.mark.parametrize("direction", [(1.0, 1.0, 0.0), (0.5, 0.0, 0.0), (np.nan, 0.0, 1.0),
+                                       (1.0, 0.0), (0.0, 0.0, 0.0)])
+def test_a_direction_that_is_not_a_unit_vector_is_refused(direction):
+    """The step is baseline x direction: a longer vector would move the arm farther than asked."""
+    model = arm()
+    s = CaptureSettings(baseline=0.02, direction=np.array(direction))
+    with pytest.raises(ConfigError, match="unit vector"):
+        plan_capture(model, table_start(model), s)
+
+
+def test_a_direction_along_the_axis_to_within_rounding_is_refused_not_a_crash():
+    """|z| may exceed 1 by rounding (a unit vector to UNIT_TOL): still a refused plan."""
+    model = arm()
+    s = CaptureSettings(baseline=0.02, direction=np.array([0.0, 0.0, -(1 + 5e-10)]))
+    plan = plan_capture(model, table_start(model), s)
+    assert not check(plan, "baseline direction").ok and not plan.ok
+
+
 @hyp_settings(max_examples=examples(6))
 @given(capture_cases())
 def test_unreachable_paths_are_refused(case):
