@@ -75,13 +75,14 @@ class Target:
 TARGETS = [
     Target("plan", "armstereo/capture/plan.py",
            ("tests/armstereo/capture/test_plan.py",),
-           ("around", "contains", "ok", "require_ok", "plan_capture", "validate_settings",
-            "_translated", "_check_speed", "_check_direction", "_check_start", "_sample_path",
-            "_check_path", "_view_joints", "_check_travel", "_estimate_duration"),
+           ("parse_direction", "around", "contains", "ok", "require_ok", "steps", "plan_capture",
+            "validate_settings", "_translated", "check_speed", "_check_direction",
+            "check_motion", "check_start", "sample_path", "check_path", "_view_joints",
+            "_check_travel", "_estimate_duration"),
            kind="safety"),
     Target("run", "armstereo/capture/run.py",
            ("tests/armstereo/capture/test_run.py", "tests/armstereo/capture/test_session.py"),
-           ("run_capture", "_shoot", "_record_pair", "_move_timeout", "_stop_quietly", "_say"),
+           ("run_capture", "_move", "_shoot", "_record_pair", "_stop_quietly", "_say"),
            kind="safety"),
     Target("session", "armstereo/capture/session.py",
            ("tests/armstereo/capture/test_session.py",
@@ -105,7 +106,8 @@ TARGETS = [
            ("tests/armstereo/reconstruct/test_stereo_properties.py",
             "tests/armstereo/reconstruct/test_stereo.py"),
            ("birchfield", "_match", "compute_disparity", "_grey", "_check_options", "_prepare",
-            "_check_exact_width", "_check_range")),
+            "_check_exact_width", "_check_range", "_reject_invalid_partners",
+            "_clip_to_window")),
 ]
 
 
@@ -123,9 +125,23 @@ def log_call_lines(path: Path) -> set[int]:
     return lines
 
 
+def check_definitions(target: Target) -> None:
+    """Every definition a target names must exist in its module: after a rename the target
+    would silently stop mutating the renamed code."""
+    tree = ast.parse((ROOT / target.module).read_text())
+    defined = {node.name for node in ast.walk(tree)
+               if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef)}
+    missing = sorted(set(target.definitions or ()) - defined)
+    if missing:
+        raise SystemExit(f"{target.name}: {target.module} defines none of {', '.join(missing)}"
+                         f" (renamed?); update TARGETS in bench/mutation.py")
+
+
 def main(argv: list[str] | None = None) -> int:
     args = _parse(argv)
     targets = [t for t in TARGETS if not args.target or t.name in args.target]
+    for target in targets:
+        check_definitions(target)
     if args.list:
         for t in targets:
             print(f"{t.name} ({t.kind}): {t.module} [{', '.join(t.definitions or ['all'])}] "

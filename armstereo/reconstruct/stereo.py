@@ -238,7 +238,7 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
     disp = _clip_to_window(disp, min_disparity, max_disparity)
     # The median and the sub-pixel steps move disparities after matching: one may now point
     # into the right image's fill or past its edge, which the programme itself never matches.
-    disp[_partner_invalid(disp, rmask)] = np.nan
+    _reject_invalid_partners(disp, rmask)
     return disp
 
 
@@ -384,19 +384,6 @@ def _remove_speckles(disp: np.ndarray, size: int, max_diff: float) -> None:
     disp[fixed < 0] = np.nan
 
 
-def _partner_invalid(disp: np.ndarray, rmask: np.ndarray) -> np.ndarray:
-    """Left pixels whose right partner ``x - d`` (to the nearest whole pixel) lies outside
-    the right image or on a masked right pixel."""
-    ys, xs = np.nonzero(np.isfinite(disp))
-    partner = np.rint(xs - disp[ys, xs].astype(np.float64)).astype(np.intp)
-    inside = (partner >= 0) & (partner < disp.shape[1])
-    bad = ~inside
-    bad[inside] = ~rmask[ys[inside], partner[inside]]
-    out = np.zeros(disp.shape, bool)
-    out[ys[bad], xs[bad]] = True
-    return out
-
-
 def _clip_to_window(disp: np.ndarray, min_disparity: int, max_disparity: int) -> np.ndarray:
     """Sub-pixel steps may leave the searched window by a fraction: clamp them back."""
     np.clip(disp, min_disparity, min_disparity + max_disparity, out=disp)
@@ -475,9 +462,8 @@ def sgbm(left: np.ndarray, right: np.ndarray, max_disparity: int, *, min_dispari
 
 
 def _reject_invalid_partners(disp: np.ndarray, rmask: np.ndarray) -> None:
-    """NaN where the matched right pixel is outside the right validity mask (in place)."""
-    if rmask.all():
-        return
+    """NaN where the matched right pixel ``x - d`` (nearest pixel) is outside the right image
+    or its validity mask (in place)."""
     H, W = disp.shape
     ys, xs = np.nonzero(np.isfinite(disp))
     xr = np.rint(xs - disp[ys, xs]).astype(np.int64)
