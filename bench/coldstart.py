@@ -15,7 +15,7 @@ The pair is the mock demo's: the default table scene rendered from two poses 0.5
 table, 80 mm apart along the camera's x axis (640x480, grey).
 
     .venv/bin/python bench/coldstart.py [--repeats 3] [--max-disparity 80] [--threads N]
-        [--options '{"subpixel": "none"}'] [--markdown]
+        [--options '{"subpixel": "none"}'] [--markdown] [--variant NAME=SRC ...]
 """
 
 from __future__ import annotations
@@ -101,8 +101,10 @@ def _per_kernel(buffer) -> list[dict]:
     return done
 
 
-def run_child(pair_path: Path, cache: str, args) -> dict:
+def run_child(pair_path: Path, cache: str, args, src: str | None) -> dict:
     env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+    if src:  # a copy of the source tree (its ``armstereo`` package) to measure instead
+        env["PYTHONPATH"] = os.pathsep.join([src, env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
     cmd = [sys.executable, __file__, "--child", str(pair_path), "--max-disparity",
            str(args.max_disparity), "--options", args.options]
     if args.threads:
@@ -164,25 +166,37 @@ def main(argv=None) -> int:
     p.add_argument("--threads", type=int, default=None)
     p.add_argument("--options", default="{}", help="JSON of extra birchfield() options")
     p.add_argument("--markdown", action="store_true")
+    p.add_argument("--variant", action="append", default=[], metavar="NAME=SRC",
+                   help="measure the armstereo package under SRC (a copy of the source tree) "
+                        "as NAME; repeat to compare variants side by side")
     p.add_argument("--child", metavar="PAIR", help=argparse.SUPPRESS)
     args = p.parse_args(argv)
     if args.child:
         res = child(args.child, args.max_disparity, args.threads, json.loads(args.options))
         print(json.dumps(res))
         return 0
+    variants = dict(v.split("=", 1) for v in args.variant) or {"this checkout": None}
+    runs = {name: ([], []) for name in variants}
+    load = []
     with tempfile.TemporaryDirectory(prefix="coldstart_") as tmp:
         pair_path = Path(tmp) / "pair.npz"
         render_pair(pair_path)
-        cold, cached = [], []
-        for i in range(args.repeats):
-            cache = tempfile.mkdtemp(prefix=f"cache{i}_", dir=tmp)
-            cold.append(run_child(pair_path, cache, args))
-            cached.append(run_child(pair_path, cache, args))
-            print(f"repeat {i + 1}: compile {cold[-1]['first_cpu'] - cold[-1]['warm_cpu']:.2f} s "
-                  f"CPU, warm {cold[-1]['warm_wall'] * 1000:.0f} ms", file=sys.stderr)
-    print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores; "
-          f"{args.repeats} repeats, medians; options {args.options}")
-    report(summarize(cold, cached), args.markdown)
+        for i in range(args.repeats):  # variants interleaved: the same load for each
+            for name, src in variants.items():
+                cache = tempfile.mkdtemp(dir=tmp)
+                cold, cached = runs[name]
+                load.append(os.getloadavg()[0])
+                cold.append(run_child(pair_path, cache, args, src))
+                cached.append(run_child(pair_path, cache, args, src))
+                print(f"repeat {i + 1} {name}: compile "
+                      f"{cold[-1]['first_cpu'] - cold[-1]['warm_cpu']:.2f} s CPU, warm "
+                      f"{cold[-1]['warm_wall'] * 1000:.0f} ms", file=sys.stderr)
+    print(f"load average {min(load):.1f}-{max(load):.1f} on {os.cpu_count()} cores; "
+          f"{args.repeats} repeats, medians; max_disparity {args.max_disparity}, threads "
+          f"{args.threads or 'default'}, options {args.options}")
+    for name, (cold, cached) in runs.items():
+        print(f"\n## {name}\n")
+        report(summarize(cold, cached), args.markdown)
     return 0
 
 
