@@ -88,14 +88,17 @@ def _row_slab(left, right, r, dmin, rx, lb, rbnd, raw, out):
                   row[:n_in])
         if n_in < nd:  # past the right edge the edge pixel stands in
             b = lv[W - 1]
-            row[n_in:] = min(max(zero, max(b - amax, amin - b)),
-                             max(zero, max(a - lmax[W - 1], lmin[W - 1] - a)))
+            edge = min(max(zero, max(b - amax, amin - b)),
+                       max(zero, max(a - lmax[W - 1], lmin[W - 1] - a)))
+            for k in range(n_in, nd):
+                row[k] = edge
     if rx == 0:
         return
     # running horizontal sum, vectorised over k (plain loops: numba's array expressions and
     # slice copies compile a costly shape-error path)
     acc = out[0]
-    acc[:] = 0.0
+    for k in range(nd):
+        acc[k] = 0.0
     for dx in range(-rx, rx + 1):
         src = raw[min(W - 1, max(0, dx))]
         for k in range(nd):
@@ -123,10 +126,13 @@ def _forward(cost, x_lo, nx, pen_l, gr, occ, novar, rew, slant, q, phi, rbest, a
     ny = cost.shape[0]
     nd = cost.shape[1]
     inf = np.float32(INF)
-    phi[0, :] = inf
-    phi[1:ny + 1, 0] = inf
-    phi[1:ny + 1, nd + 1] = inf
-    rbest[:ny + nd] = inf
+    for k in range(nd + 2):
+        phi[0, k] = inf
+    for y in range(1, ny + 1):
+        phi[y, 0] = inf
+        phi[y, nd + 1] = inf
+    for i in range(ny + nd):
+        rbest[i] = inf
     iq = np.float32(1.0 / q)
     _load(cost, 0, x_lo, nx, q, iq, dn)
     for k in range(nd):
@@ -181,7 +187,8 @@ def _backtrack(cost, x_lo, nx, phi, pen_l, gr, occ, novar, rew, slant, q, match)
     of :func:`_forward` (preference: no jump, one-pixel jumps, occlusions)."""
     ny, nd = cost.shape
     iq = np.float32(1.0 / q)
-    match[:] = -1
+    for x in range(match.shape[0]):
+        match[x] = -1
     best = np.float32(VALID_BELOW)
     y = -1
     k = -1
@@ -289,7 +296,8 @@ def match_block(left3, right3, left, right, lmask, rmask, textured, r_begin, r_e
         if r1 <= r0 or u1 <= x0:
             continue
         nx, x_lo = u1 - r0, x0 - r0
-        gl[:] = False
+        for x in range(W):
+            gl[x] = False
         variation_flags(left3[r], la, lb, x0 + dmin, u1 + dmin, threshold, forward, gl, x_lo)
         variation_flags(right3[r], ra, rb, r0, r1, threshold, backward, gr, zero)
         for i in range(nx + nd + 1):

@@ -140,7 +140,7 @@ def _backtrack(phi, back, nx, match):
     return best
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def decode_matches(match, disp, state):
     """Per-left-pixel disparity index and state from ``match`` (reference-code decoding).
 
