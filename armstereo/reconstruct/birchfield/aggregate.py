@@ -66,7 +66,7 @@ def _bt_costs(lv, lmin, lmax, a, amin, amax, out):
         out[i] = min(max(zero, max(b - amax, amin - b)), max(zero, max(a - lmax[i], lmin[i] - a)))
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, inner=True)
 def _row_slab(left, right, r, dmin, rx, lb, rbnd, raw, out):
     """``out[xr, k]``: sum over ``|dx| <= rx`` of the BT cost of right pixel ``xr + dx`` and left
     pixel ``xr + dx + dmin + k`` (columns clamped to the image) of image row ``r``."""
@@ -112,7 +112,7 @@ def _row_slab(left, right, r, dmin, rx, lb, rbnd, raw, out):
             dst[k] = prev[k] + (add[k] - sub[k])
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, inner=True)
 def _forward(cost, x_lo, nx, pen_l, gr, occ, novar, rew, slant, q, phi, rbest, a, dn):
     """The exact programme of :mod:`.dp_fast` on a (ny, nd) slab of summed costs, plus
     one-pixel jumps (a slanted surface rather than an occlusion) at the penalty ``slant``,
@@ -180,7 +180,7 @@ def _node(cost, y, k, q, iq):
     return c if q == 1 else np.floor(c * iq)
 
 
-@njit(cache=True)
+@njit(cache=True, inner=True)
 def _backtrack(cost, x_lo, nx, phi, pen_l, gr, occ, novar, rew, slant, q, match):
     """Walk back from the cheapest node at the last left pixel (ties: largest k); as in
     :func:`.dp_exact._backtrack`, each step re-derived from the padded ``phi``

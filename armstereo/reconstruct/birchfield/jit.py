@@ -18,8 +18,19 @@ log = logging.getLogger(__name__)
 _cache_ok: bool | None = None  # None until the first kernel has tried
 
 
-def njit(*args, **options):
-    """``numba.njit`` with ``cache=True`` unless no cache location is writable."""
+# A kernel that only other kernels call needs neither the CPython wrapper (argument unboxing,
+# large for many arguments) nor the C-callable wrapper that numba compiles for every function
+# by default; leaving them out shortens the first run's compile.
+_INNER = dict(no_cpython_wrapper=True, no_cfunc_wrapper=True)
+
+
+def njit(*args, inner: bool = False, **options):
+    """``numba.njit`` with ``cache=True`` unless no cache location is writable.
+
+    ``inner=True``: the kernel is called from other kernels only, never from Python.
+    """
+    if inner:
+        options.update(_INNER)
     if args and callable(args[0]):
         return _compile(args[0], options)
     return lambda func: _compile(func, options)

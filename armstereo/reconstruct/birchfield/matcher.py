@@ -66,7 +66,7 @@ def row_geometry(la, lb, ra, rb, dmin, nd):
     return r0, r1, x0, u1
 
 
-@njit(cache=True)
+@njit(cache=True, inner=True)
 def _row_bounds(left, right, la, lb, ra, rb, r0, r1, x0, u1, dmin, gl, gr):
     """Interval bounds (C, n) and intensity-variation flags of one row, local coordinates:
     right pixel ``r0 + y`` is local ``y``; left pixel ``r0 + dmin + x`` is local ``x``."""
@@ -88,7 +88,7 @@ def _row_bounds(left, right, la, lb, ra, rb, r0, r1, x0, u1, dmin, gl, gr):
     return lv, lmin, lmax, rv, rmin, rmax
 
 
-@njit(cache=True)
+@njit(cache=True, inner=True)
 def _begin_row(lmask_row, rmask_row, dmin, nd, disp_row, state_row):
     """Reset one row's outputs; returns ``(la, lb, r0, r1, x0, u1, ra, rb)``: the valid runs
     and the geometry of :func:`row_geometry`."""
@@ -104,7 +104,7 @@ def _begin_row(lmask_row, rmask_row, dmin, nd, disp_row, state_row):
     return la, lb, r0, r1, x0, u1, ra, rb
 
 
-@njit(cache=True)
+@njit(cache=True, inner=True)
 def _store_row(match, la, lb, r0, x_lo, dmin, dloc, sloc, disp_row, state_row):
     """Decode one row's match sequence (local coordinates) into the image row."""
     nx = match.shape[0]
