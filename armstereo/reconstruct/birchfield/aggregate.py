@@ -66,7 +66,7 @@ def _bt_costs(lv, lmin, lmax, a, amin, amax, out):
         out[i] = min(max(zero, max(b - amax, amin - b)), max(zero, max(a - lmax[i], lmin[i] - a)))
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, inner=True)
 def _row_slab(left, right, r, dmin, rx, lb, rbnd, raw, out):
     """``out[xr, k]``: sum over ``|dx| <= rx`` of the BT cost of right pixel ``xr + dx`` and left
     pixel ``xr + dx + dmin + k`` (columns clamped to the image) of image row ``r``."""
@@ -88,14 +88,17 @@ def _row_slab(left, right, r, dmin, rx, lb, rbnd, raw, out):
                   row[:n_in])
         if n_in < nd:  # past the right edge the edge pixel stands in
             b = lv[W - 1]
-            row[n_in:] = min(max(zero, max(b - amax, amin - b)),
-                             max(zero, max(a - lmax[W - 1], lmin[W - 1] - a)))
+            edge = min(max(zero, max(b - amax, amin - b)),
+                       max(zero, max(a - lmax[W - 1], lmin[W - 1] - a)))
+            for k in range(n_in, nd):
+                row[k] = edge
     if rx == 0:
         return
     # running horizontal sum, vectorised over k (plain loops: numba's array expressions and
     # slice copies compile a costly shape-error path)
     acc = out[0]
-    acc[:] = 0.0
+    for k in range(nd):
+        acc[k] = 0.0
     for dx in range(-rx, rx + 1):
         src = raw[min(W - 1, max(0, dx))]
         for k in range(nd):
@@ -109,25 +112,27 @@ def _row_slab(left, right, r, dmin, rx, lb, rbnd, raw, out):
             dst[k] = prev[k] + (add[k] - sub[k])
 
 
-@njit(cache=True, fastmath=True)
-def _forward(cost, x_lo, nx, pen_l, gr, occ, novar, rew, slant, q, phi):
+@njit(cache=True, fastmath=True, inner=True)
+def _forward(cost, x_lo, nx, pen_l, gr, occ, novar, rew, slant, q, phi, rbest, a, dn):
     """The exact programme of :mod:`.dp_fast` on a (ny, nd) slab of summed costs, plus
     one-pixel jumps (a slanted surface rather than an occlusion) at the penalty ``slant``,
     allowed with or without intensity variation: into ``(y + 1, k)`` from ``(y, k - 1)`` (one
     left pixel skipped) and from ``(y - 1, k + 1)`` (one right pixel skipped).
 
     ``phi`` is padded: node ``(y, k)`` is ``phi[y + 1, k + 1]``; row 0 and columns 0 and
-    ``nd + 1`` stay INF so that the shifted reads need no tests.
+    ``nd + 1`` stay INF so that the shifted reads need no tests. ``rbest`` (>= ny + nd),
+    ``a`` and ``dn`` (nd) are float32 work arrays.
     """
     ny = cost.shape[0]
     nd = cost.shape[1]
     inf = np.float32(INF)
-    phi[0, :] = inf
-    phi[1:ny + 1, 0] = inf
-    phi[1:ny + 1, nd + 1] = inf
-    rbest = np.full(ny + nd, inf, np.float32)
-    a = np.empty(nd, np.float32)
-    dn = np.empty(nd, np.float32)
+    for k in range(nd + 2):
+        phi[0, k] = inf
+    for y in range(1, ny + 1):
+        phi[y, 0] = inf
+        phi[y, nd + 1] = inf
+    for i in range(ny + nd):
+        rbest[i] = inf
     iq = np.float32(1.0 / q)
     _load(cost, 0, x_lo, nx, q, iq, dn)
     for k in range(nd):
@@ -175,14 +180,15 @@ def _node(cost, y, k, q, iq):
     return c if q == 1 else np.floor(c * iq)
 
 
-@njit(cache=True)
+@njit(cache=True, inner=True)
 def _backtrack(cost, x_lo, nx, phi, pen_l, gr, occ, novar, rew, slant, q, match):
     """Walk back from the cheapest node at the last left pixel (ties: largest k); as in
     :func:`.dp_exact._backtrack`, each step re-derived from the padded ``phi``
     of :func:`_forward` (preference: no jump, one-pixel jumps, occlusions)."""
     ny, nd = cost.shape
     iq = np.float32(1.0 / q)
-    match[:] = -1
+    for x in range(match.shape[0]):
+        match[x] = -1
     best = np.float32(VALID_BELOW)
     y = -1
     k = -1
@@ -247,13 +253,14 @@ def _slide(total, slab, sign):
 
 @njit(cache=True, nogil=True, fastmath=True)
 def match_block(left3, right3, left, right, lmask, rmask, textured, r_begin, r_end, dmin, nd,
-                occ, rew, slant, rx, ry, q, disp, state):
+                occ, rew, slant, rx, ry, q, disp, state, work):
     """Match image rows ``r_begin .. r_end - 1`` on aggregated costs.
 
     ``left3``/``right3``: (H, W, 1) uint8 grey images as given (intensity-variation flags);
     ``left``/``right``: (H, W) uint8 grey images filled outside the masks (costs). ``occ`` and
     ``rew``: doubled per-pixel penalty and reward. Outputs, indexed by left image pixel:
     ``disp``/``state`` as :func:`armstereo.reconstruct.birchfield.matcher.match_rows`.
+    ``work``: the work arrays of :func:`_work_arrays`.
     """
     H, W = left.shape
     n = ry * 2 + 1
@@ -262,24 +269,22 @@ def match_block(left3, right3, left, right, lmask, rmask, textured, r_begin, r_e
     rew_s = np.float32(np.floor(rew * npix / q + 0.5))
     novar = np.float32(np.floor(NO_VARIATION_PENALTY * npix / q + 0.5))
     slant_s = np.float32(np.floor(slant * npix / q + 0.5)) if slant >= 0 else np.float32(INF)
-    ring = np.empty((n, W, nd), np.float32)
-    raw = np.empty((W, nd), np.float32)
-    total = np.zeros((W, nd), np.float32)
-    bl = (np.empty(W, np.float32), np.empty(W, np.float32), np.empty(W, np.float32))
-    br = (np.empty(W, np.float32), np.empty(W, np.float32), np.empty(W, np.float32))
+    ring, raw, total, phi, vec, flags, ints, sloc = work
+    bl = (vec[0, :W], vec[1, :W], vec[2, :W])
+    br = (vec[3, :W], vec[4, :W], vec[5, :W])
+    pen_l, rew_x, rbest = vec[6], vec[7], vec[8]
+    a, dn = vec[9, :nd], vec[10, :nd]
+    gl, gr = flags[0], flags[1]
+    match, dloc = ints[0], ints[1]
+    # np.int64/np.bool_: plain constants would be typed as literals, and each literal value
+    # compiles its own copy of the called kernel
+    threshold, zero = np.int64(VARIATION_THRESHOLD), np.int64(0)
+    forward, backward = np.bool_(True), np.bool_(False)
     for j in range(-ry, ry + 1):
         rr = r_begin + j
         s = (rr - r_begin + n) % n
         _row_slab(left, right, min(H - 1, max(0, rr)), dmin, rx, bl, br, raw, ring[s])
         _slide(total, ring[s], 1)
-    phi = np.empty((W + 1, nd + 2), np.float32)
-    gl = np.empty(W, np.bool_)
-    gr = np.empty(W, np.bool_)
-    match = np.empty(W, np.int32)
-    dloc = np.empty(W, np.int32)
-    sloc = np.empty(W, np.uint8)
-    pen_l = np.empty(W + nd + 1, np.float32)
-    rew_x = np.empty(W + nd + 1, np.float32)
     for r in range(r_begin, r_end):
         if r > r_begin:
             s = (r + ry - r_begin + n) % n
@@ -291,18 +296,34 @@ def match_block(left3, right3, left, right, lmask, rmask, textured, r_begin, r_e
         if r1 <= r0 or u1 <= x0:
             continue
         nx, x_lo = u1 - r0, x0 - r0
-        gl[:] = False
-        variation_flags(left3[r], la, lb, x0 + dmin, u1 + dmin, VARIATION_THRESHOLD, True, gl,
-                        x_lo)
-        variation_flags(right3[r], ra, rb, r0, r1, VARIATION_THRESHOLD, False, gr, 0)
+        for x in range(W):
+            gl[x] = False
+        variation_flags(left3[r], la, lb, x0 + dmin, u1 + dmin, threshold, forward, gl, x_lo)
+        variation_flags(right3[r], ra, rb, r0, r1, threshold, backward, gr, zero)
         for i in range(nx + nd + 1):
             pen_l[i] = occ_s if i < nx and gl[i] else occ_s + novar
             rew_x[i] = rew_s if i < nx and textured[r, r0 + dmin + i] else np.float32(0.0)
         slab = total[r0:r1]
-        _forward(slab, x_lo, nx, pen_l, gr, occ_s, novar, rew_x, slant_s, q, phi)
+        _forward(slab, x_lo, nx, pen_l, gr, occ_s, novar, rew_x, slant_s, q, phi, rbest, a, dn)
         if _backtrack(slab, x_lo, nx, phi, pen_l, gr, occ_s, novar, rew_x, slant_s, q,
                       match[:nx]):
             _store_row(match[:nx], la, lb, r0, x_lo, dmin, dloc, sloc, disp[r], state[r])
+
+
+def _work_arrays(W: int, nd: int, ry: int) -> tuple:
+    """Work arrays of one :func:`match_block` call, allocated here rather than in the kernel:
+    every array type a kernel creates compiles its own allocation code (numba's cold start).
+
+    ``(ring, raw, total, phi, vec, flags, ints, sloc)``: the ``2 ry + 1`` row slabs, the
+    unsummed slab and their running sum (zeroed), each (W, nd) float32; the padded programme
+    (W + 1, nd + 2) float32; 11 float32 vectors (BT bounds of both rows, penalties, rewards,
+    running minima, scratch), (2, W) bool variation flags, (2, W) int32 matches and
+    decoded disparities, (W,) uint8 states.
+    """
+    f32 = np.float32
+    return (np.empty((2 * ry + 1, W, nd), f32), np.empty((W, nd), f32), np.zeros((W, nd), f32),
+            np.empty((W + 1, nd + 2), f32), np.empty((11, W + nd + 1), f32),
+            np.empty((2, W), np.bool_), np.empty((2, W), np.int32), np.empty(W, np.uint8))
 
 
 def fill_outside(grey: np.ndarray, mask: np.ndarray) -> np.ndarray:
@@ -337,11 +358,13 @@ def match_image_aggregated(left: np.ndarray, right: np.ndarray, lmask: np.ndarra
     n = max(1, min(H, threads))
     cuts = np.linspace(0, H, n + 1).round().astype(int)
     if n == 1:
-        match_block(*args, 0, H, dmin, nd, occ, rew, slant, rx, ry, q, *maps)
+        match_block(*args, 0, H, dmin, nd, occ, rew, slant, rx, ry, q, *maps,
+                    _work_arrays(W, nd, ry))
     else:
         with ThreadPoolExecutor(n) as pool:
             jobs = [pool.submit(match_block, *args, int(cuts[i]), int(cuts[i + 1]), dmin, nd,
-                                occ, rew, slant, rx, ry, q, *maps) for i in range(n)]
+                                occ, rew, slant, rx, ry, q, *maps, _work_arrays(W, nd, ry))
+                    for i in range(n)]
             for job in jobs:
                 job.result()
     return out

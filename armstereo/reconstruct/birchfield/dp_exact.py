@@ -77,7 +77,7 @@ def _grey_costs(lv, lmin, lmax, v, vmin, vmax, out):
                      max(zero, max(v - lmax[i], lmin[i] - v)))
 
 
-@njit(cache=True)
+@njit(cache=True, inner=True)
 def _penalties(flags, occ, n):
     """Occlusion penalty per pixel: ``occ``, plus the no-variation penalty where not flagged."""
     pen = np.full(n, occ, np.float32)
@@ -141,7 +141,7 @@ def _node_cost(lv, lmin, lmax, rv, rmin, rmax, x, y, combine_max):
     return total
 
 
-@njit(cache=True)
+@njit(cache=True, inner=True)
 def _backtrack(lv, lmin, lmax, rv, rmin, rmax, combine_max, phi, pen_l, gr, occ, rew, nx,
                match):
     """Walk back from the cheapest node at the last left pixel (ties: largest k)."""

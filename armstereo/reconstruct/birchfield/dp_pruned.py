@@ -45,7 +45,7 @@ def _relax(phi, back, xmin, y, k, cost, pred):
             xmin[y + k] = cost
 
 
-@njit(cache=True)
+@njit(cache=True, inner=True)
 def _expand_left(phi, back, xmin, dis, gl, y, k, c, occ, rew):
     """Left occlusions from node (y, k) into row y + 1 (disparity rises)."""
     nd = dis.shape[1]
@@ -57,7 +57,7 @@ def _expand_left(phi, back, xmin, dis, gl, y, k, c, occ, rew):
         _relax(phi, back, xmin, y + 1, k2, c + p + d2 - rew, k)
 
 
-@njit(cache=True)
+@njit(cache=True, inner=True)
 def _expand_right(phi, back, xmin, dis, gr, y, k, c, occ, rew):
     """Right occlusions from node (y, k): all land on left pixel y + k + 1 (disparity drops)."""
     ny = dis.shape[0]
@@ -111,7 +111,7 @@ def scanline_dp(dis, gl, gr, occ, rew, prune, phi, back, match):
     return _backtrack(phi, back, nx, match)
 
 
-@njit(cache=True)
+@njit(cache=True, inner=True)
 def _backtrack(phi, back, nx, match):
     ny, nd = phi.shape
     best = INF
@@ -140,7 +140,7 @@ def _backtrack(phi, back, nx, match):
     return best
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def decode_matches(match, disp, state):
     """Per-left-pixel disparity index and state from ``match`` (reference-code decoding).
 

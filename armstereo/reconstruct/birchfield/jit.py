@@ -5,6 +5,13 @@ numba's ``cache=True`` raises "no locator available" when neither the package's
 writable, e.g. a read-only install with a read-only home; importing the matcher (and so every
 CLI command) would then fail. This decorator falls back to ``cache=False`` for every kernel
 and says so once: the commands still work, each process compiling what it uses.
+
+The first run compiles the kernels (bench/coldstart.py measures it). What makes that slow with
+numba, and is avoided on the default path: every array allocation type and every literal
+argument value compiles a function of its own (allocate work arrays in Python; pass
+``np.int64``/``np.bool_`` rather than bare constants to a kernel), a slice assignment compiles
+a generic loop nest (write the loop), and every kernel gets wrappers for calls from Python
+(``inner=True`` leaves them out for kernels that only other kernels call).
 """
 
 from __future__ import annotations
@@ -18,8 +25,19 @@ log = logging.getLogger(__name__)
 _cache_ok: bool | None = None  # None until the first kernel has tried
 
 
-def njit(*args, **options):
-    """``numba.njit`` with ``cache=True`` unless no cache location is writable."""
+# A kernel that only other kernels call needs neither the CPython wrapper (argument unboxing,
+# large for many arguments) nor the C-callable wrapper that numba compiles for every function
+# by default; leaving them out shortens the first run's compile.
+_INNER = dict(no_cpython_wrapper=True, no_cfunc_wrapper=True)
+
+
+def njit(*args, inner: bool = False, **options):
+    """``numba.njit`` with ``cache=True`` unless no cache location is writable.
+
+    ``inner=True``: the kernel is called from other kernels only, never from Python.
+    """
+    if inner:
+        options.update(_INNER)
     if args and callable(args[0]):
         return _compile(args[0], options)
     return lambda func: _compile(func, options)

@@ -33,7 +33,7 @@ DP_PRUNED = 1  # reference code's pruned search
 DP_FULL = 2  # unpruned push search, O(n nd^2): an oracle
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def longest_run(valid):
     """``(start, stop)`` of the longest run of True in ``valid`` (``(0, 0)`` if none)."""
     best_a = 0
@@ -52,7 +52,7 @@ def longest_run(valid):
     return best_a, best_b
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def row_geometry(la, lb, ra, rb, dmin, nd):
     """Right pixels ``[r0, r1)`` and shifted left pixels ``[x0, u1)`` that can take part.
 
@@ -66,7 +66,7 @@ def row_geometry(la, lb, ra, rb, dmin, nd):
     return r0, r1, x0, u1
 
 
-@njit(cache=True)
+@njit(cache=True, inner=True)
 def _row_bounds(left, right, la, lb, ra, rb, r0, r1, x0, u1, dmin, gl, gr):
     """Interval bounds (C, n) and intensity-variation flags of one row, local coordinates:
     right pixel ``r0 + y`` is local ``y``; left pixel ``r0 + dmin + x`` is local ``x``."""
@@ -88,20 +88,23 @@ def _row_bounds(left, right, la, lb, ra, rb, r0, r1, x0, u1, dmin, gl, gr):
     return lv, lmin, lmax, rv, rmin, rmax
 
 
-@njit(cache=True)
+@njit(cache=True, inner=True)
 def _begin_row(lmask_row, rmask_row, dmin, nd, disp_row, state_row):
     """Reset one row's outputs; returns ``(la, lb, r0, r1, x0, u1, ra, rb)``: the valid runs
     and the geometry of :func:`row_geometry`."""
-    disp_row[:] = -1
-    state_row[:] = INVALID
+    # plain loops: numba compiles a slice assignment into far more code (cold start)
+    for x in range(disp_row.shape[0]):
+        disp_row[x] = -1
+        state_row[x] = INVALID
     la, lb = longest_run(lmask_row)
     ra, rb = longest_run(rmask_row)
-    state_row[la:lb] = BORDER
+    for x in range(la, lb):
+        state_row[x] = BORDER
     r0, r1, x0, u1 = row_geometry(la, lb, ra, rb, dmin, nd)
     return la, lb, r0, r1, x0, u1, ra, rb
 
 
-@njit(cache=True)
+@njit(cache=True, inner=True)
 def _store_row(match, la, lb, r0, x_lo, dmin, dloc, sloc, disp_row, state_row):
     """Decode one row's match sequence (local coordinates) into the image row."""
     nx = match.shape[0]
@@ -112,8 +115,10 @@ def _store_row(match, la, lb, r0, x_lo, dmin, dloc, sloc, disp_row, state_row):
         state_row[off + x] = sloc[x]
     # valid left pixels that cannot be matched keep BORDER and take the nearest decoded
     # disparity (the reference code's dense border policy)
-    disp_row[la:off + x_lo] = dloc[x_lo]
-    disp_row[off + nx:lb] = dloc[nx - 1]
+    for x in range(la, min(off + x_lo, disp_row.shape[0])):
+        disp_row[x] = dloc[x_lo]
+    for x in range(off + nx, min(lb, disp_row.shape[0])):
+        disp_row[x] = dloc[nx - 1]
 
 
 @njit(cache=True, nogil=True)

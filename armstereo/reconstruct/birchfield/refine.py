@@ -95,7 +95,7 @@ def refine_parabola(left, right, disp, radius):
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, inner=True)
 def _sample(row, pos):
     """Linear interpolation of ``row`` at ``pos`` (NaN outside)."""
     if pos < 0.0 or pos > row.shape[0] - 1:
@@ -105,7 +105,7 @@ def _sample(row, pos):
     return (1.0 - t) * row[i] + t * row[i + 1]
 
 
-@njit(cache=True)
+@njit(cache=True, inner=True)
 def _gradient_terms(left, right, cur, gg, gd):
     """Per pixel: ``g^2`` and ``g^2 d - g e`` of the 1-D Lucas-Kanade step (0 where unusable)."""
     H, W = cur.shape
@@ -128,7 +128,7 @@ def _gradient_terms(left, right, cur, gg, gd):
             gd[r, x] = g * g * d - g * e
 
 
-@njit(cache=True)
+@njit(cache=True, inner=True)
 def _same_surface_sums(cur, gg, gd, radius, sgg, sgd):
     """Window sums of ``gg``/``gd`` over pixels whose disparity is within 1 of the centre's.
 
