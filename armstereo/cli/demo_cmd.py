@@ -176,9 +176,12 @@ def score_summary(score: dict) -> list[str]:
     """Short phrases from ``scene_score.json``'s keys (objects cut by the view not counted in
     the worst errors)."""
     worst = score["worst"]
+    if worst["center_error_m"] is None:
+        errors = "no object fully in view to score"
+    else:
+        errors = (f"worst centre {worst['center_error_m'] * 1000:.1f} mm, height "
+                  f"{worst['height_error_m'] * 1000:.1f} mm")
     return [f"{len(score['matched'])} of {score['true_objects']} objects found, phantoms: "
             f"{len(score['phantoms'])}, missed: {', '.join(score['missed']) or 'none'}",
             f"plane tilt {score['plane_tilt_deg']:.3f} deg, height "
-            f"{score['plane_height_error_m'] * 1000:+.2f} mm",
-            f"worst centre {worst['center_error_m'] * 1000:.1f} mm, height "
-            f"{worst['height_error_m'] * 1000:.1f} mm"]
+            f"{score['plane_height_error_m'] * 1000:+.2f} mm", errors]

@@ -54,11 +54,12 @@ class SceneScore:
     missed: tuple[str, ...]
     phantoms: tuple[int, ...]
 
-    def worst(self, *, include_partial: bool = False) -> dict[str, float]:
-        """Largest absolute errors over matched objects (partial ones only if asked)."""
+    def worst(self, *, include_partial: bool = False) -> dict[str, float | None]:
+        """Largest absolute errors over matched objects (partial ones only if asked); None
+        (JSON null) for each when no object was scored, rather than a perfect-looking 0."""
         rows = [m for m in self.matched if include_partial or not m.partial]
         keys = ("center_error_m", "length_error_m", "width_error_m", "height_error_m")
-        return {k: max((abs(getattr(m, k)) for m in rows), default=0.0) for k in keys}
+        return {k: max((abs(getattr(m, k)) for m in rows), default=None) for k in keys}
 
     def as_dict(self) -> dict:
         d = asdict(self)

@@ -80,8 +80,18 @@ def test_partial_objects_are_left_out_of_the_worst_unless_asked():
     doc["objects"][2]["partial"] = True
     doc["objects"][2]["center_m"][1] += 0.01
     score = score_scene(doc, truth)
-    assert score.worst()["center_error_m"] == 0.0
+    assert score.worst()["center_error_m"] == pytest.approx(0.0)
     assert score.worst(include_partial=True)["center_error_m"] == pytest.approx(0.01)
+
+
+def test_no_scored_object_gives_no_worst_error_rather_than_zero():
+    truth = _truth()
+    doc = _perfect(truth)
+    for obj in doc["objects"]:
+        obj["partial"] = True
+    score = score_scene(doc, truth)
+    assert set(score.worst().values()) == {None}
+    assert score.as_dict()["worst"]["center_error_m"] is None
     assert score.as_dict()["matched"][2]["partial"] is True
 
 
