@@ -13,7 +13,7 @@ demo turns on for clean views:
   top across its steep side and the half-occluded table beside it (foreground fattening along
   the baseline), 11-13 mm too wide with the centre 2.4-4.4 mm off (seeds 0-5), and those
   points sit at the top's height, so no cloud-only filter can tell them from the top. With
-  it: within 2.4 mm, centre within 1.3 mm (bench/results/footprint.md).
+  it: within 3.7 mm, centre within 1.8 mm (bench/results/footprint.md).
 """
 
 from __future__ import annotations
