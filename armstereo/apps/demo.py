@@ -34,6 +34,7 @@ from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
 from armstereo.reconstruct.outputs import write_outputs
 from armstereo.reconstruct.pipeline import reconstruct_pair
+from armstereo.reconstruct.stereo import CLEAN_PHOTO_CHECK
 from armstereo.recording import Recording
 from armstereo.recording.inspect import summarize
 from armstereo.robot.model_file import load_arm_model
@@ -61,10 +62,23 @@ class DemoOptions:
     # What the software believes about the camera (None: the bundled mount file, which the
     # mock's true camera differs from by the profile's errors).
     mount: CameraMount | None = None
+    # Options of the matcher; None: the profile's choice (see :meth:`matcher_options`).
+    stereo_options: dict | None = None
 
     @property
     def profile_name(self) -> str:
         return getattr(self.profile, "name", self.profile)
+
+    def matcher_options(self) -> dict:
+        """The matcher's options: ``stereo_options`` if given; else, on the ideal profile
+        with Birchfield-Tomasi, the photo-consistency check for clean views (both views see
+        the same intensities there, so a match that does not look alike is the foreground
+        carried across a depth edge: bench/results/footprint.md), else the defaults."""
+        if self.stereo_options is not None:
+            return dict(self.stereo_options)
+        if self.profile_name == "ideal" and self.method == "birchfield":
+            return {"photo_check": CLEAN_PHOTO_CHECK}
+        return {}
 
 
 def demo_settings(options: DemoOptions) -> CaptureSettings:
@@ -117,7 +131,8 @@ def run_demo(out_dir: Path, options: DemoOptions = DemoOptions(),
 
     progress(f"[4/7] rectifying and matching ({options.method}; the first run compiles the "
              "matcher, later runs reuse the cache)")
-    recon = reconstruct_pair(pair, method=options.method)
+    recon = reconstruct_pair(pair, method=options.method,
+                             stereo_options=options.matcher_options())
     timings.update({k: recon.timings_s[k] for k in ("decode", "rectify", "match",
                                                     "triangulate")})
 

@@ -63,7 +63,8 @@ class FusionOptions:
     reconstruct in this process (more: worker processes, started with ``spawn``, so a script
     calling this needs the ``if __name__ == "__main__":`` guard); ``depth_source`` ``truth``
     fuses the mock camera's ground-truth depth instead of stereo (a plumbing check);
-    ``score`` False skips scoring against scene truth."""
+    ``score`` False skips scoring against scene truth; ``stereo_options`` go to the matcher
+    (e.g. ``{"photo_check": CLEAN_PHOTO_CHECK}`` for clean mock views)."""
 
     voxel: float = DEFAULT_VOXEL_M
     trunc: float | None = None
@@ -75,6 +76,7 @@ class FusionOptions:
     interpolation: str = "bilinear"
     score: bool = True
     seed: int = 0
+    stereo_options: dict | None = None
 
     @property
     def trunc_m(self) -> float:
@@ -314,7 +316,9 @@ def _pair_job(rec: Recording, k: int, o: FusionOptions, threads: int | None = No
         timings: dict[str, float] = {}
         left, right = pair.left, pair.right
     else:
-        stereo = {} if threads is None else {"threads": threads}
+        stereo = dict(o.stereo_options or {})
+        if threads is not None:
+            stereo["threads"] = threads
         recon = reconstruct_pair(pair, method=o.method, stereo_options=stereo)
         frame = frame_from_reconstruction(recon)
         pts = recon.points_base

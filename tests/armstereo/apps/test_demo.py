@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from armstereo.apps.demo import score_reconstruction
+from armstereo.apps.demo import DemoOptions, score_reconstruction
 from armstereo.cli.main import main
 from armstereo.io.ply import read_ply
 from armstereo.reconstruct.pipeline import reconstruct_pair
@@ -46,11 +46,12 @@ def test_demo_writes_every_file_and_a_complete_report(demo_dir):
     acc = report["accuracy"]
     for key in ("median_abs_rel_depth_error", "within_1pct", "density"):
         assert isinstance(acc[key], float)
-    # Regression bounds near what the demo measures (0.015 % median, 96.5 % within 1 %,
-    # density 99.1 %); the product's targets are 0.5 % and 90 %.
+    # Regression bounds near what the demo measures (0.022 % median, 93.3 % within 1 %,
+    # density 93.9 %; 96.5 % and 99.1 % before the ideal profile's photo check removed the
+    # fattened edges, bench/results/footprint.md); the product's targets are 0.5 % and 90 %.
     assert acc["median_abs_rel_depth_error"] <= 0.0003
-    assert acc["within_1pct"] >= 0.95
-    assert acc["density"] >= 0.98
+    assert acc["within_1pct"] >= 0.92
+    assert acc["density"] >= 0.92
     for name in ("disparity.png", "rectified.png", "depth_error.png"):
         img = cv2.imread(str(demo_dir / name))
         assert img is not None and img.shape[0] > 100
@@ -61,7 +62,7 @@ def test_demo_writes_every_file_and_a_complete_report(demo_dir):
 def test_demo_accuracy_is_measured_against_ground_truth(demo_dir):
     report = json.loads((demo_dir / "report.json").read_text())
     pair = Recording.open(demo_dir / "demo.mcap")[0]
-    recon = reconstruct_pair(pair)
+    recon = reconstruct_pair(pair, stereo_options=DemoOptions(profile="ideal").matcher_options())
     same = score_reconstruction(recon.depth_original, pair, swapped=recon.swapped)
     assert same.median_abs_rel_depth_error == pytest.approx(
         report["accuracy"]["median_abs_rel_depth_error"], rel=1e-6)
