@@ -251,6 +251,8 @@ def _report(recon, accuracy, timings: dict[str, float], options: DemoOptions) ->
         "accuracy": accuracy.as_dict(),
         "baseline_m": options.baseline,
         "method": options.method,
+        # options passed to the matcher beyond its defaults (e.g. the ideal profile's check)
+        "matcher_options": options.matcher_options(),
         "disparity_range_px": [0, int(recon.window.max_disparity)],
         "depth_range_m": [round(recon.window.near, 4), round(recon.window.far, 4)],
         "robot": options.robot,

@@ -62,7 +62,9 @@ def test_demo_writes_every_file_and_a_complete_report(demo_dir):
 def test_demo_accuracy_is_measured_against_ground_truth(demo_dir):
     report = json.loads((demo_dir / "report.json").read_text())
     pair = Recording.open(demo_dir / "demo.mcap")[0]
-    recon = reconstruct_pair(pair, stereo_options=DemoOptions(profile="ideal").matcher_options())
+    # the report says which matcher options made it, so it can be reproduced
+    assert report["matcher_options"] == DemoOptions(profile="ideal").matcher_options()
+    recon = reconstruct_pair(pair, stereo_options=report["matcher_options"])
     same = score_reconstruction(recon.depth_original, pair, swapped=recon.swapped)
     assert same.median_abs_rel_depth_error == pytest.approx(
         report["accuracy"]["median_abs_rel_depth_error"], rel=1e-6)
