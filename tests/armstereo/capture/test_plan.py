@@ -16,6 +16,7 @@ import math
 from dataclasses import dataclass, replace
 from functools import cache
 
+import cv2
 import numpy as np
 import pytest
 from hypothesis import assume, example, given
@@ -28,6 +29,10 @@ from armstereo.capture.plan import (
     MAX_PAIRS,
     MAX_SAMPLE_JUMP_RAD,
     MIN_ANGLE_TO_OPTICAL_AXIS_DEG,
+    check_motion,
+    check_path,
+    check_speed,
+    parse_direction,
     validate_settings,
 )
 from armstereo.devices import (
@@ -381,3 +386,111 @@ def test_views_and_duration_are_what_the_path_and_profile_give(case, settle):
     back = trapezoid_duration(s.baseline * s.pairs, lim.linear_speed, lim.linear_acceleration)
     expected = s.pairs * move + back + (s.pairs + 1) * settle
     assert plan.duration_s == pytest.approx(expected, rel=1e-12)
+
+
+# --- the limits themselves, the building blocks the tours share -------------------------------
+
+def test_the_margin_and_sigma_limits_themselves_are_allowed():
+    """"needs >= limit": a path whose tightest sample sits exactly on the limit passes, one a
+    bit past it does not (the checks are public: the scan tours call them too)."""
+    model = arm()
+    q = table_start(model)
+    T = model.flange_pose(q)
+    box = Workspace.around(model)
+    margin = float(np.minimum(q - model.lower, model.upper - q).min())
+    sigma = float(model.sigma_min(q))
+    s = CaptureSettings(baseline=0.02, direction=unit([1, 0, 0]), joint_margin=margin,
+                        min_sigma=sigma)
+    on = {c.name: c.ok for c in check_path(model, [(T, q, "")], s, box)}
+    assert on["joint limits"] and on["singularity"]
+    past = replace(s, joint_margin=float(np.nextafter(margin, np.inf)),
+                   min_sigma=float(np.nextafter(sigma, np.inf)))
+    off = {c.name: c.ok for c in check_path(model, [(T, q, "")], past, box)}
+    assert not off["joint limits"] and not off["singularity"]
+    # a one-sample path (one view, no move) has no jump between samples
+    assert on["path continuity"] and on["IK along the path"]
+
+
+def test_the_joint_travel_limit_itself_is_allowed():
+    model = arm()
+    q0 = table_start(model)
+    s = CaptureSettings(baseline=0.05, direction=unit([1, 0, 0]), pairs=2)
+    views = walk(model, q0, s).view_qs
+    travel = max(float(np.abs(b - a).max()) for a, b in zip(views[:-1], views[1:], strict=True))
+    assert check(plan_capture(model, q0, replace(s, max_joint_travel=travel)), "joint travel").ok
+    past = replace(s, max_joint_travel=float(np.nextafter(travel, 0)))
+    assert not check(plan_capture(model, q0, past), "joint travel").ok
+
+
+@pytest.mark.parametrize("field", sorted(CAPS))
+@pytest.mark.parametrize("value", [0.0, -0.1])
+def test_the_speed_caps_check_refuses_zero_and_negative_limits(field, value):
+    """The tours call check_speed on limits that did not go through validate_settings."""
+    assert not check_speed(replace(MotionLimits(), **{field: value})).ok
+    assert check_speed(MotionLimits()).ok
+
+
+def test_a_pure_rotation_and_a_forward_move_are_not_stereo():
+    """check_motion refuses a pair whose camera only turns (no baseline) and one whose epipole
+    lies in the image (moving along the optical axis), each on its own."""
+    model = arm()
+    T_fc = model.mount.T_flange_camera
+    T0 = model.flange_pose(table_start(model))
+    cam0 = T0 @ T_fc
+    turn = np.eye(4)
+    turn[:3, :3] = cv2.Rodrigues(np.array([0.0, 0.2, 0.0]))[0]
+    turned = cam0 @ turn @ np.linalg.inv(T_fc)  # the camera turns about its own centre
+    ahead = cam0.copy()
+    ahead[:3, 3] += cam0[:3, 2] * 0.05  # 5 cm along the optical axis
+    forward = ahead @ np.linalg.inv(T_fc)
+    sideways = cam0.copy()
+    sideways[:3, 3] += cam0[:3, 0] * 0.05
+    assert not check_motion(model, [T0, turned]).ok
+    assert not check_motion(model, [T0, forward]).ok
+    assert check_motion(model, [T0, sideways @ np.linalg.inv(T_fc)]).ok
+
+
+@pytest.mark.parametrize("text", ["1,2", "1,2,3,4", "nan,0,0", "0,0,0", "1e-10,0,0", "sideways",
+                                  ""])
+def test_a_malformed_direction_is_refused(text):
+    with pytest.raises(ConfigError, match="--direction"):
+        parse_direction(text)
+
+
+def test_directions_are_named_or_normalised():
+    d, label = parse_direction(" -Y ")
+    assert label == "-y" and np.array_equal(d, [0.0, -1.0, 0.0])
+    d, label = parse_direction("3,4,0")
+    assert label == "3,4,0"
+    np.testing.assert_allclose(d, [0.6, 0.8, 0.0], rtol=0, atol=1e-15)
+
+
+def test_the_steps_shoot_view_0_then_one_pair_per_move_and_return():
+    model = arm()
+    s = CaptureSettings(baseline=0.02, direction=unit([1, 0, 0]), direction_label="x", pairs=3)
+    plan = plan_capture(model, table_start(model), s)
+    steps = plan.steps()
+    assert [st_.view for st_ in steps] == [0, 1, 2, 3, None]
+    assert [st_.move for st_ in steps] == ["none", "linear", "linear", "linear", "linear"]
+    pairs = [st_.pair for st_ in steps if st_.pair is not None]
+    assert [(p.pair, p.left_view, p.right_view) for p in pairs] == [(0, 0, 1), (1, 1, 2), (2, 2, 3)]
+    assert all(type(v) is int for p in pairs for v in (p.pair, p.left_view, p.right_view))
+    assert all(p.commanded_m == 0.02 and p.direction == "x" for p in pairs)
+    for k in (1, 2, 3):
+        assert np.array_equal(steps[k].target, plan.T_base_flange[k])
+    assert np.array_equal(steps[-1].target, plan.T_base_flange[0])  # back to the start
+
+
+def test_the_continuity_limit_itself_is_allowed():
+    """A jump of exactly MAX_SAMPLE_JUMP_RAD between two samples passes, a bit more does not."""
+    model = arm()
+    q = table_start(model).copy()
+    q[0] = 0.0  # so that the step below is exactly the limit in floating point
+    box = Workspace.around(model)
+    s = CaptureSettings(baseline=0.02, direction=unit([1, 0, 0]))
+    for jump, ok in ((MAX_SAMPLE_JUMP_RAD, True), (np.nextafter(MAX_SAMPLE_JUMP_RAD, 1), False)):
+        q2 = q.copy()
+        q2[0] = jump
+        assert q2[0] - q[0] == jump
+        samples = [(model.flange_pose(x), x, "") for x in (q, q2)]
+        assert {c.name: c.ok for c in check_path(model, samples, s, box)}["path continuity"] == ok
