@@ -523,6 +523,10 @@ def _reject_invalid_partners(disp: np.ndarray, rmask: np.ndarray) -> None:
     """NaN where the matched right pixel ``x - d`` (nearest pixel) is outside the right image
     or its validity mask (in place)."""
     H, W = disp.shape
+    if rmask.all():  # only the left edge can be crossed (d >= 0); NaN compares False
+        with np.errstate(invalid="ignore"):
+            disp[np.rint(np.arange(W, dtype=np.float32) - disp) < 0] = np.nan
+        return
     ys, xs = np.nonzero(np.isfinite(disp))
     xr = np.rint(xs - disp[ys, xs]).astype(np.int64)
     off = (xr < 0) | (xr >= W)
