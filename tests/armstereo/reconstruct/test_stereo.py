@@ -16,7 +16,7 @@ from armstereo.evaluation.disparity import evaluate_disparity
 from armstereo.io.disparity import read_disparity
 from armstereo.reconstruct.stereo import PAPER_OPTIONS, birchfield, compute_disparity, sgbm
 from tests.support import MIDDLEBURY
-from tests.support.images import texture
+from tests.support.images import box_pair, texture
 
 # Measured 3.49 % (bench/results/stereo.md); the bound leaves room for tie-breaking changes,
 # not for a broken matcher.
@@ -29,22 +29,6 @@ def shifted_pair(d0, *, shape=(60, 120), seed=0, channels=1):
     H, W = shape
     tex = texture((H, W + d0), seed, channels=channels)
     return tex[:, :W], tex[:, d0:]
-
-
-def box_pair(d_bg, d_fg, box, *, shape=(80, 140), seed=1):
-    """A textured background plane at ``d_bg`` and a fronto-parallel box at ``d_fg`` covering
-    the left-image rectangle ``box = (x0, x1, y0, y1)``. Returns (left, right)."""
-    H, W = shape
-    x0, x1, y0, y1 = box
-    bg = texture((H, W + d_bg), seed)
-    fg = texture((H, W + d_fg), seed + 100)
-    xs = np.arange(W)
-    left = bg[:, :W].copy()  # background point x seen at x in the left view ...
-    left[y0:y1, x0:x1] = fg[y0:y1, x0:x1]
-    right = bg[:, d_bg:d_bg + W].copy()  # ... and at x - d_bg in the right view
-    covered = (xs + d_fg >= x0) & (xs + d_fg < x1)  # right pixels the box hides
-    right[y0:y1, covered] = fg[y0:y1][:, xs[covered] + d_fg]  # box point x seen at x - d_fg
-    return left, right
 
 
 def fractional_pair(d0: float, *, shape=(60, 140), seed=3):

@@ -15,6 +15,7 @@ import pytest
 from armstereo.errors import StereoError
 from armstereo.reconstruct import stereo
 from armstereo.reconstruct.stereo import CLEAN_PHOTO_CHECK, birchfield
+from tests.support.images import box_pair as textured_box_pair
 from tests.support.images import texture
 
 NOISE = 1.0  # grey levels per view, as the mock camera's ideal profile
@@ -26,19 +27,9 @@ def _noisy(img: np.ndarray, seed: int) -> np.ndarray:
 
 
 def box_pair(d_bg=3, d_fg=11, box=(50, 100, 20, 60), shape=(80, 140), seed=1):
-    """A textured background at ``d_bg`` and a fronto-parallel box at ``d_fg`` over the
-    left-image rectangle ``box = (x0, x1, y0, y1)``; left pixels ``x0 - (d_fg - d_bg) ..
-    x0 - 1`` of its rows show background the box hides from the right camera."""
-    H, W = shape
-    x0, x1, y0, y1 = box
-    bg = texture((H, W + d_bg), seed)
-    fg = texture((H, W + d_fg), seed + 100)
-    xs = np.arange(W)
-    left = bg[:, :W].copy()
-    left[y0:y1, x0:x1] = fg[y0:y1, x0:x1]
-    right = bg[:, d_bg:d_bg + W].copy()
-    covered = (xs + d_fg >= x0) & (xs + d_fg < x1)
-    right[y0:y1, covered] = fg[y0:y1][:, xs[covered] + d_fg]
+    """:func:`tests.support.images.box_pair` with camera noise; left pixels ``x0 - (d_fg -
+    d_bg) .. x0 - 1`` of the box's rows show background the box hides from the right camera."""
+    left, right = textured_box_pair(d_bg, d_fg, box, shape=shape, seed=seed)
     return _noisy(left, seed + 1), _noisy(right, seed + 2)
 
 

@@ -19,7 +19,8 @@ from armstereo.reconstruct.birchfield.aggregate import match_image_aggregated
 from armstereo.reconstruct.birchfield.dp_pruned import BORDER
 from armstereo.reconstruct.birchfield.matcher import DP_EXACT, DP_PRUNED, match_image
 from armstereo.reconstruct.stereo import PAPER_OPTIONS, SUBPIXEL_MAX_SHIFT, birchfield
-from tests.armstereo.reconstruct.test_stereo import box_pair, fractional_pair, shifted_pair
+from tests.armstereo.reconstruct.test_stereo import fractional_pair, shifted_pair
+from tests.support.images import box_pair
 from tests.support.properties import examples
 
 # The paper's single-pixel programme and its own answer: no postprocessing, no rejections.

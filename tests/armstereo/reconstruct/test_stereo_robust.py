@@ -25,30 +25,7 @@ from armstereo.reconstruct.birchfield.aggregate import (
 from armstereo.reconstruct.birchfield.matcher import match_image
 from armstereo.reconstruct.stereo import PAPER_OPTIONS, birchfield
 from tests.support import MIDDLEBURY
-
-
-def texture(shape, seed, *, blur=1.5, contrast=50.0):
-    """Band-limited random grey texture (uint8): BT needs features of 2-3 px at least."""
-    rng = np.random.default_rng(seed)
-    noise = cv2.GaussianBlur(rng.standard_normal(shape).astype(np.float32), (0, 0), blur)
-    return np.clip(np.rint(128.0 + contrast * noise / (3.0 * noise.std())), 0,
-                   255).astype(np.uint8)
-
-
-def box_pair(d_bg, d_fg, box, *, shape=(80, 140), seed=1):
-    """A textured background at ``d_bg`` and a box at ``d_fg`` over the left-image rectangle
-    ``box = (x0, x1, y0, y1)`` (as in test_stereo_matcher)."""
-    H, W = shape
-    x0, x1, y0, y1 = box
-    bg = texture((H, W + d_bg), seed)
-    fg = texture((H, W + d_fg), seed + 100)
-    xs = np.arange(W)
-    left = bg[:, :W].copy()
-    left[y0:y1, x0:x1] = fg[y0:y1, x0:x1]
-    right = bg[:, d_bg:d_bg + W].copy()
-    covered = (xs + d_fg >= x0) & (xs + d_fg < x1)
-    right[y0:y1, covered] = fg[y0:y1][:, xs[covered] + d_fg]
-    return left, right
+from tests.support.images import box_pair, texture
 
 # bad-2 with the defaults, measured 3.43 / 4.59 / 9.70 / 8.29 % (bench/results/stereo.md);
 # the bounds leave room for tie-breaking changes, not for a broken matcher.
