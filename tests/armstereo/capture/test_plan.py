@@ -460,9 +460,12 @@ def test_a_malformed_direction_is_refused(text):
 def test_directions_are_named_or_normalised():
     d, label = parse_direction(" -Y ")
     assert label == "-y" and np.array_equal(d, [0.0, -1.0, 0.0])
-    d, label = parse_direction("3,4,0")
-    assert label == "3,4,0"
-    np.testing.assert_allclose(d, [0.6, 0.8, 0.0], rtol=0, atol=1e-15)
+    for text in ("3,4,0", "0.6,0.8,0", "0.3,0.4,0"):
+        d, label = parse_direction(text)
+        assert label == text
+        np.testing.assert_allclose(d, [0.6, 0.8, 0.0], rtol=0, atol=1e-15)
+    d, _ = parse_direction("1e-9,0,0")  # the shortest vector accepted: only its direction counts
+    assert np.array_equal(d, [1.0, 0.0, 0.0])
 
 
 def test_the_steps_shoot_view_0_then_one_pair_per_move_and_return():
