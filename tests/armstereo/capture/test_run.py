@@ -9,7 +9,7 @@ call, with the clock time, into one shared list, so the order across devices can
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from functools import cache
 
 import numpy as np
@@ -20,7 +20,8 @@ from hypothesis import strategies as st
 
 from armstereo.camera_model import Intrinsics
 from armstereo.capture import CaptureSettings, plan_capture, run_capture
-from armstereo.capture.plan import parse_direction
+from armstereo.capture.plan import PairStep, Step, parse_direction
+from armstereo.capture.run import MOVE_TIMEOUT_MARGIN_S
 from armstereo.clock import SimClock
 from armstereo.devices import ArmState, Camera, Frame
 from armstereo.errors import (
@@ -383,3 +384,98 @@ def test_the_arm_returns_to_the_start_and_ends_at_rest():
     np.testing.assert_allclose(last[1]["T_base_flange"], plan.T_base_flange[0], atol=1e-12)
     assert last[1]["speed"] == plan.settings.limits.linear_speed
     assert last[1]["acceleration"] == plan.settings.limits.linear_acceleration
+
+
+# --- each kind of move, and the joints read with each shot -------------------------------------
+
+class MoveSpy(LoggedArm):
+    """Also keeps what each move was asked: (kind, speed, acceleration, timeout)."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.moves: list[tuple[str, float, float, float]] = []
+
+    def move_linear(self, T, speed, acceleration, timeout=None):
+        self.moves.append(("linear", speed, acceleration, timeout))
+        super().move_linear(T, speed, acceleration, timeout=timeout)
+
+    def move_joints(self, q, speed, acceleration, timeout=None):
+        self.moves.append(("joints", speed, acceleration, timeout))
+        super().move_joints(q, speed, acceleration, timeout=timeout)
+
+
+@dataclass
+class StepPlan:
+    """A checked plan given as its steps (what a scan tour hands the loop)."""
+
+    settings: CaptureSettings
+    given: list[Step]
+
+    def require_ok(self) -> None:
+        pass
+
+    def steps(self) -> list[Step]:
+        return self.given
+
+
+def kind(name: str) -> str:
+    """``name`` as a string object of its own, as a plan read from a file would carry: kinds
+    are compared by value, not by identity with the module's literals."""
+    return "".join(list(name))
+
+
+def spy_rig() -> Rig:
+    rig = Rig()
+    rig.arm = MoveSpy(rig, model(), table_start(model()), clock=rig.clock)
+    rig.arm.connect()
+    return rig
+
+
+def test_each_move_kind_runs_at_its_caps_with_the_plans_time_plus_the_margin():
+    rig = spy_rig()
+    plan = make_plan(pairs=1)
+    lim = plan.settings.limits
+    steps = [Step(kind("none"), None, 1.0, view=0),
+             Step(kind("joints"), plan.q_views[1], 2.5, view=1,
+                  pair=PairStep(0, 0, 1, 0.05, "x")),
+             Step(kind("linear"), plan.T_base_flange[0], 3.5)]
+    rig.run(StepPlan(plan.settings, steps))
+    assert rig.arm.moves == [
+        ("joints", lim.joint_speed, lim.joint_acceleration, 2.5 + MOVE_TIMEOUT_MARGIN_S),
+        ("linear", lim.linear_speed, lim.linear_acceleration, 3.5 + MOVE_TIMEOUT_MARGIN_S)]
+    assert [v["view"] for v in rig.writer.views] == [0, 1]
+    assert rig.writer.pairs == [(0, 0, 1)]
+
+
+@pytest.mark.parametrize("name", ["wiggle", "hover", "Linear", ""])
+def test_an_unknown_move_kind_is_refused_and_the_arm_stopped(name):
+    """Kinds sorting before and after every known one: no prefix or order test may pass."""
+    rig = spy_rig()
+    plan = make_plan(pairs=1)
+    steps = [Step(kind("none"), None, 1.0, view=0),
+             Step(kind(name), plan.T_base_flange[1], 2.0, view=1)]
+    with pytest.raises(ValueError, match="unknown move kind"):
+        rig.run(StepPlan(plan.settings, steps))
+    assert rig.arm.moves == [] and "arm.stop" in rig.sites()
+
+
+def test_each_view_keeps_the_controllers_pose_when_the_arm_reports_one():
+    rig = Rig()
+    rig.run(make_plan(pairs=1))
+    for written in rig.writer.views:
+        np.testing.assert_allclose(written["controller_T"], model().flange_pose(written["q"]),
+                                   atol=1e-12)
+
+
+class ArmWithoutControllerPose(LoggedArm):
+    joints_and_controller_pose = None  # an arm whose interface has only joint_positions()
+
+
+def test_an_arm_without_a_controller_pose_records_its_joints_alone():
+    rig = Rig()
+    rig.arm = ArmWithoutControllerPose(rig, model(), table_start(model()), clock=rig.clock)
+    rig.arm.connect()
+    rig.run(make_plan(pairs=1))
+    assert len(rig.writer.views) == 2
+    assert all(v["controller_T"] is None for v in rig.writer.views)
+

@@ -17,7 +17,7 @@ from armstereo.camera_model import Intrinsics
 from armstereo.capture import CaptureSettings, plan_capture
 from armstereo.capture.plan import parse_direction
 from armstereo.capture.session import capture_to_file, sigterm_as_interrupt
-from armstereo.errors import RecordingError, UserAbort
+from armstereo.errors import CameraTimeout, RecordingError, UserAbort
 from armstereo.kinematics import ArmModel
 from armstereo.recording import Recording, RecordingWriter
 from drivers.mock.arm import MockArm
@@ -170,3 +170,51 @@ def test_a_writer_error_stops_the_arm(tmp_path, monkeypatch, method):
         capture_to_file(arm, camera, model(), plan_for(3), out, {}, progress=None)
     assert arm.history[-1][0] == "stop"
     assert [name for name, _ in arm.history].count("move_linear") == 2 - (method == "write_view")
+
+
+# --- what is left behind ------------------------------------------------------------------------
+
+class FailingCamera:
+    """Wraps the mock camera: grab number ``n`` raises (after ``before`` ran, if given)."""
+
+    def __init__(self, camera, n: int, before=None):
+        self.camera, self.n, self.before, self.grabs = camera, n, before, 0
+
+    def __getattr__(self, name):
+        return getattr(self.camera, name)
+
+    def grab(self, *args, **kwargs):
+        self.grabs += 1
+        if self.grabs == self.n:
+            if self.before is not None:
+                self.before()
+            raise CameraTimeout("no frame within 2.0 s")
+        return self.camera.grab(*args, **kwargs)
+
+
+def test_a_capture_that_records_no_view_leaves_no_file_and_says_so(tmp_path):
+    arm, camera = rig()
+    out = tmp_path / "rec.mcap"
+    with pytest.raises(CameraTimeout, match=f"no view was recorded, {out} not kept"):
+        capture_to_file(arm, FailingCamera(camera, 1), model(), plan_for(2), out, {},
+                        progress=None)
+    assert not out.exists()
+
+
+def test_a_capture_that_records_one_view_keeps_it_and_says_so(tmp_path):
+    arm, camera = rig()
+    out = tmp_path / "rec.mcap"
+    with pytest.raises(CameraTimeout, match=rf"1 view\(s\) kept in {out}"):
+        capture_to_file(arm, FailingCamera(camera, 2), model(), plan_for(2), out, {},
+                        progress=None)
+    assert [v.index for v in Recording.open(out).views] == [0]
+
+
+def test_an_output_removed_during_the_capture_does_not_hide_the_error(tmp_path):
+    """Someone deleted the file mid-capture: the camera's error is what the user sees."""
+    arm, camera = rig()
+    out = tmp_path / "rec.mcap"
+    failing = FailingCamera(camera, 1, before=lambda: out.unlink())
+    with pytest.raises(CameraTimeout):
+        capture_to_file(arm, failing, model(), plan_for(1), out, {}, progress=None)
+    assert arm.history[-1][0] == "stop"
