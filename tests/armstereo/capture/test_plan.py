@@ -252,7 +252,7 @@ def test_a_plan_that_passes_moves_sideways_to_the_optical_axis(case):
 
 
 @pytest.mark.parametrize("direction", [(1.0, 1.0, 0.0), (0.5, 0.0, 0.0), (np.nan, 0.0, 1.0),
-                                       (1.0, 0.0), (0.0, 0.0, 0.0)])
+                                       (1.0, 0.0), (1.0, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0)])
 def test_a_direction_that_is_not_a_unit_vector_is_refused(direction):
     """The step is baseline x direction: a longer vector would move the arm farther than asked."""
     model = arm()
@@ -497,3 +497,23 @@ def test_the_continuity_limit_itself_is_allowed():
         assert q2[0] - q[0] == jump
         samples = [(model.flange_pose(x), x, "") for x in (q, q2)]
         assert {c.name: c.ok for c in check_path(model, samples, s, box)}["path continuity"] == ok
+
+
+def test_a_single_point_outside_the_workspace_is_named():
+    """Only the path's last camera position pokes out of the box: refused, and named."""
+    model = arm()
+    q0 = table_start(model)
+    s = CaptureSettings(baseline=0.05, direction=unit([1, 0, 0]), pairs=2)
+    path = walk(model, q0, s)
+    points = np.vstack([path.flanges, path.cameras])
+    axis = int(np.argmax(np.ptp(points, axis=0)))  # the axis the path runs along most
+    order = np.sort(points[:, axis])
+    lo, hi = points.min(axis=0) - 0.01, points.max(axis=0) + 0.01
+    hi[axis] = (order[-1] + order[-2]) / 2  # between the farthest point and the next one
+    plan = plan_capture(model, q0, replace(s, workspace=Workspace(tuple(lo), tuple(hi))))
+    refused = check(plan, "workspace")
+    assert not refused.ok
+    named = np.array([float(v) for v in refused.detail.split("(")[1].split(")")[0].split(",")])
+    farthest = points[np.argmax(points[:, axis])]
+    assert np.abs(named - farthest).max() <= 0.0005
+
