@@ -44,6 +44,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-check", action="store_true",
                    help="skip the self-check of each pair's recorded poses against its images "
                    "(armstereo check; a miscalibrated pair is reported as a warning)")
+    p.add_argument("--photo-check", type=args_.non_negative("grey levels", cap=255.0),
+                   default=0.0, metavar="G",
+                   help="birchfield: near depth jumps, drop matches whose views differ by more "
+                   "than G grey levels (against foreground fattening; for clean, evenly lit "
+                   "images; about 4; default 0 = off)")
     p.set_defaults(func=run)
 
 
@@ -77,6 +82,12 @@ def _select(rec: Recording, which: str) -> list:
     return chosen
 
 
+def _stereo_options(args: argparse.Namespace) -> dict:
+    if args.method == "birchfield" and args.photo_check > 0:
+        return {"photo_check": args.photo_check}
+    return {}
+
+
 def run(args: argparse.Namespace) -> int:
     path = args.recording
     max_disparity = _max_disparity(args.max_disparity)
@@ -95,7 +106,8 @@ def run(args: argparse.Namespace) -> int:
                 _warn_if_miscalibrated(pair)
             try:
                 recon = reconstruct_pair(pair, method=args.method, max_disparity=max_disparity,
-                                         near=args.near, far=args.far)
+                                         near=args.near, far=args.far,
+                                         stereo_options=_stereo_options(args))
             except (RecordingError, StereoError) as err:
                 if len(pairs) == 1:
                     raise

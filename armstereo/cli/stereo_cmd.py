@@ -57,6 +57,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                     help="reject pixels failing a left-right consistency check (twice the time)")
     bt.add_argument("--no-postprocess", action="store_true",
                     help="raw scanline result, without the paper's propagation across rows")
+    bt.add_argument("--photo-check", type=args_.non_negative("grey levels", cap=255.0),
+                    default=0.0, metavar="G",
+                    help="near depth jumps, drop matches whose views differ by more than G "
+                    "grey levels (against foreground fattening; clean images; default 0 = off)")
     bt.add_argument("--threads", type=args_.whole(1, 256), default=None, metavar="K",
                     help="rows are matched on K threads (default: all cores)")
     p.set_defaults(func=run)
@@ -94,7 +98,7 @@ def _options(args: argparse.Namespace) -> dict:
         return {}
     return dict(color=args.color, occlusions=args.occlusions, subpixel=args.subpixel,
                 lr_check=args.lr_check, postprocess=not args.no_postprocess,
-                threads=args.threads)
+                threads=args.threads, photo_check=args.photo_check)
 
 
 def run(args: argparse.Namespace) -> int:

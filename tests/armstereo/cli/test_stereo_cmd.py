@@ -73,6 +73,23 @@ def test_stereo_sgbm_and_options(pair, tmp_path, capsys):
     assert np.isnan(disp[:, :2]).all() and (disp[:, D0:] == D0).all()
 
 
+def test_stereo_photo_check_is_the_librarys(tmp_path, capsys):
+    from tests.support.images import box_pair
+
+    left, right = box_pair(3, 11, (50, 100, 20, 60))
+    paths = tmp_path / "l.png", tmp_path / "r.png"
+    for p, img in zip(paths, (left, right), strict=True):
+        cv2.imwrite(str(p), img)
+    out = tmp_path / "d.pfm"
+    code, _, _ = run_cli(capsys, "stereo", *paths, "--max-disparity", 15, "--out", out,
+                         "--photo-check", 4)
+    assert code == 0
+    np.testing.assert_array_equal(read_disparity(out), birchfield(left, right, 15, photo_check=4))
+    code, _, err = run_cli(capsys, "stereo", *paths, "--max-disparity", 15, "--out", out,
+                           "--photo-check", -1)
+    assert code == 2 and "--photo-check" in err
+
+
 def test_eval_round_trip_through_pfm_and_png(tmp_path, capsys):
     rng = np.random.default_rng(2)
     gt = rng.uniform(4, 30, (40, 60)).astype(np.float32)

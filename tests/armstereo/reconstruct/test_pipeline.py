@@ -195,3 +195,25 @@ def test_pair_without_poses_is_refused(recording):
     broken = dataclasses.replace(pair.left, T_base_flange=np.full((4, 4), np.nan))
     with pytest.raises(RecordingError, match="view 0 has no camera pose"):
         reconstruct_pair(dataclasses.replace(pair, left=broken))
+
+
+@pytest.mark.parametrize("argv, expected", [
+    (["--photo-check", "4"], {"photo_check": 4.0}),
+    ([], {}),
+    (["--photo-check", "4", "--method", "sgbm"], {}),  # a Birchfield-Tomasi option only
+])
+def test_cli_passes_the_photo_check_to_the_matcher(recording, tmp_path, monkeypatch, argv,
+                                                   expected):
+    from armstereo.cli import reconstruct_cmd
+
+    seen = []
+    real = reconstruct_cmd.reconstruct_pair
+
+    def spy(pair, **kwargs):
+        seen.append(kwargs["stereo_options"])
+        return real(pair, **kwargs)
+
+    monkeypatch.setattr(reconstruct_cmd, "reconstruct_pair", spy)
+    assert main(["-q", "reconstruct", str(recording), "--pair", "0", "--out", str(tmp_path),
+                 "--max-disparity", "48", "--far", "0.6", *argv]) == 0
+    assert seen == [expected]
