@@ -232,21 +232,23 @@ def window_index(disp: np.ndarray, min_d: int) -> np.ndarray:
     return np.ascontiguousarray(np.where(np.isfinite(disp), disp - min_d, -1), dtype=np.int32)
 
 
-@pytest.mark.parametrize("seed, min_d", [(0, 0), (1, 2)])
-def test_the_left_right_check_matches_the_mirrored_pair_with_its_own_reward(seed, min_d):
+@pytest.mark.parametrize("seed, min_d, reward_texture", [(0, 0, 0.5), (1, 2, 0.5), (2, 0, 0.0)])
+def test_the_left_right_check_matches_the_mirrored_pair_with_its_own_reward(seed, min_d,
+                                                                            reward_texture):
     """The right-to-left pass is the same matcher run on the mirrored, swapped pair, flat pixels
-    of the right image earning no reward where they are: the check rejects exactly the left
-    answers that the mirrored pair's answer contradicts by more than one pixel."""
+    of the right image earning no reward where they are (or every pixel rewarded, with
+    reward_texture 0 as in the paper): the check rejects exactly the left answers that the
+    mirrored pair's answer contradicts by more than one pixel."""
     left, right = (img.copy() for img in box_pair(2, 10, (40, 80, 10, 40), shape=(50, 110),
                                                   seed=seed))
     left[:, 60:75], right[:, 50:65] = 120, 120  # flat stripes: no reward there
     left[:, 90:105], right[:, 85:100] = 60, 60
-    plain = birchfield(left, right, 12, min_disparity=min_d, **WHOLE)
+    options = dict(WHOLE, reward_texture=reward_texture, min_disparity=min_d)
+    plain = birchfield(left, right, 12, **options)
     mirrored = birchfield(np.ascontiguousarray(right[:, ::-1]),
-                          np.ascontiguousarray(left[:, ::-1]), 12, min_disparity=min_d,
-                          **WHOLE)[:, ::-1]
+                          np.ascontiguousarray(left[:, ::-1]), 12, **options)[:, ::-1]
     contradicted = left_right_mismatch(window_index(plain, min_d), window_index(mirrored, min_d),
                                        min_d, 1)
-    checked = birchfield(left, right, 12, min_disparity=min_d, lr_check=True, **WHOLE)
+    checked = birchfield(left, right, 12, lr_check=True, **options)
     np.testing.assert_array_equal(checked, np.where(contradicted, np.nan, plain))
     assert 0 < contradicted.mean() < 0.5
