@@ -242,8 +242,9 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
     if occlusions == "nan":
         reject |= _hidden_by_nearer(np.where(reject, np.nan, dense), OCCLUSION_MARGIN)
     if lr_check:
+        textured_rm = None if textured_r is None else textured_r[:, ::-1]  # None: reward all
         idx_r, state_r = _match(mr[:, ::-1], ml[:, ::-1], rmask[:, ::-1], lmask[:, ::-1],
-                                   textured=textured_r[:, ::-1], **params)
+                                   textured=textured_rm, **params)
         # mirrored, swapped pair: its "left" is the mirrored right image
         idx_r = np.where(state_r >= _dp.BORDER, -1, idx_r)
         idx_r = np.ascontiguousarray(idx_r[:, ::-1])

@@ -404,3 +404,150 @@ def test_oblique_baseline_is_refused_or_capped(caplog):
     assert max(geom.size) == int(1.5 * 640) and "capped" in caplog.text
     geom, _ = rectified_geometry(intr, np.eye(4), intr, baseline_at(50), out_size=(500, 400))
     assert geom.size == (500, 400)
+
+
+# ----------------------------------------------------------------------------------------------
+# Contracts the mutation run (bench/results/mutation.md) found untested
+# ----------------------------------------------------------------------------------------------
+K_SMALL = np.array([[60.0, 0, 31.5], [0, 60.0, 23.5], [0, 0, 1]])  # 64x48 images: fast remaps
+SMALL = (64, 48)
+
+
+def sideways(angle_deg: float, length: float = 0.1) -> np.ndarray:
+    """Camera 2 translated (same orientation) at ``angle_deg`` from camera 1's optical axis."""
+    a = math.radians(angle_deg)
+    return make_T(np.eye(3), [length * math.sin(a), 0.0, length * math.cos(a)])
+
+
+def test_baselines_within_5_degrees_of_the_optical_axis_are_refused():
+    # docs/rectification.md: the documented limit is 5 degrees (MIN_BASELINE_ANGLE_DEG)
+    K = np.array([[600.0, 0, 319.5], [0, 600.0, 239.5], [0, 0, 1]])
+    with pytest.raises(StereoError, match=r"optical axis \(angle 4\.5 deg\)"):
+        fusiello(ppm(K, np.eye(4)), ppm(K, sideways(4.5)))
+    r = fusiello(ppm(K, np.eye(4)), ppm(K, sideways(5.5)))
+    assert np.allclose(factor_projection(r.P2)[2], sideways(5.5)[:3, 3], atol=1e-12)
+
+
+@pytest.mark.parametrize("scale", [1e-6, 1e-3, 1.0, 1e3, 1e6])
+def test_singular_ppm_detection_does_not_depend_on_the_ppms_scale(scale):
+    """A PPM whose left 3x3 block has collapsed (optical-axis row within 1e-14 of the x row) is
+    refused and one with a small but real third dimension (1e-6) accepted, at any scale."""
+    K = np.array([[600.0, 0, 319.5], [0, 600.0, 239.5], [0, 0, 1]])
+
+    def camera(eps: float) -> np.ndarray:
+        R = np.array([[1.0, 0, 0], [0, 1.0, 0], [1.0, 0, eps]])  # third row ~ first row
+        return K @ np.hstack([R, [[0.1], [0.2], [2.0]]])
+
+    with pytest.raises(StereoError, match="singular"):
+        factor_projection(scale * camera(1e-14))
+    A, _, _ = factor_projection(scale * camera(1e-6))
+    assert np.allclose(A, factor_projection(camera(1e-6))[0], rtol=1e-9)
+
+
+def test_the_same_place_tolerance_is_inclusive():
+    # Two views count as taken from the same place up to 1e-12 of their distance from the
+    # origin (at least 1e-12 m), that bound included: P = [I | -c] gives c exactly.
+    def at(x: float) -> np.ndarray:
+        return np.hstack([np.eye(3), [[-x], [0.0], [0.0]]])
+
+    with pytest.raises(StereoError, match="same place"):
+        fusiello(at(0.0), at(1e-12))
+    fusiello(at(0.0), at(1e-11))  # ten times the tolerance: a (tiny) real baseline
+
+
+def test_warped_bounds_are_x_then_y():
+    H = np.array([[2.0, 0, 10.0], [0, 0.5, -20.0], [0, 0, 1]])  # x: scale 2, y: scale 0.5
+    assert warped_bounds(H, (11, 41)) == (10.0, -20.0, 30.0, 0.0)
+
+
+def corner_bounds(H: np.ndarray, size) -> np.ndarray:
+    w, h = size[0] - 1.0, size[1] - 1.0
+    m = apply_h(H, np.array([[0.0, 0], [w, 0], [w, h], [0, h]]))
+    return np.r_[m.min(axis=0), m.max(axis=0)]
+
+
+@pytest.mark.parametrize("seed,direction", [(1, (1, 0, 0)), (5, (1, 0.4, 0.2)),
+                                            (2, (-1, 0.3, 0)), (3, (0.2, 1, 0))])  # not capped
+@pytest.mark.parametrize("depth_range", [None, (1.0, 3.0)])
+def test_canvas_is_the_documented_box_of_the_warped_images(seed, direction, depth_range):
+    """Without a depth range: the smallest box holding both warped images. With one: the rows
+    both images cover, and the columns from the leftmost content of either image to the left
+    image's right edge. Pixel-centre coordinates, so the box starts at (0, 0)."""
+    (K1, T1), (K2, T2) = random_rig(seed, direction, skew=False)
+    img = np.zeros(SIZE[::-1], np.uint8)
+    rp = rectify_pair(img, img, K1, None, T1, K2, None, T2, depth_range=depth_range)
+    b1 = corner_bounds(rp.rectification.H1, SIZE)
+    b2 = corner_bounds(rp.rectification.H2, SIZE)
+    if depth_range is None:
+        lo, hi = np.minimum(b1[:2], b2[:2]), np.maximum(b1[2:], b2[2:])
+    else:
+        lo = np.array([min(b1[0], b2[0]), max(b1[1], b2[1])])
+        hi = np.array([b1[2], min(b1[3], b2[3])])
+    assert np.allclose(lo, 0.0, atol=1e-6)
+    assert rp.size == (int(math.floor(hi[0] + 1e-9)) + 1, int(math.floor(hi[1] + 1e-9)) + 1)
+    # the rig's x and y extents differ, so bounds that mixed up x and y would not fit
+    assert b1[2] - b1[0] != pytest.approx(b1[3] - b1[1], abs=1.0)
+
+
+def test_views_sharing_one_row_rectify_and_views_sharing_none_are_refused():
+    # Same orientation, baseline along x: the rectified rows of view 2 are its original rows
+    # moved by its principal point. cy 47 vs 0 on 48-row images overlap in exactly one row
+    # (exact in floating point: rows do not depend on the baseline, and the numbers they do
+    # depend on are small binary fractions).
+    def geometry(cy2: float):
+        K2 = np.array([[60.0, 0, 31.5], [0, 60.0, cy2], [0, 0, 1]])
+        K1 = np.array([[60.0, 0, 31.5], [0, 60.0, 47.0], [0, 0, 1]])
+        return rectified_geometry(Intrinsics(*SMALL, K1), np.eye(4), Intrinsics(*SMALL, K2),
+                                  make_T(np.eye(3), [0.1, 0, 0]), depth_range=(1.0, 3.0))
+
+    geom, _ = geometry(0.0)
+    assert geom.size == (64, 1)
+    with pytest.raises(StereoError, match="share no rows"):
+        geometry(-1.0)
+
+
+def test_a_capped_canvas_is_centred_on_the_left_image():
+    # 40 deg from the optical axis the warped images are ~2600x2000 px; the canvas is capped at
+    # 1.5 x 640 and cropped around the left image's centre. Camera 2 is tilted, so its centre
+    # lands elsewhere.
+    K = np.array([[600.0, 0, 319.5], [0, 600.0, 239.5], [0, 0, 1]])
+    T2 = sideways(40.0) @ make_T(rot_x(math.radians(5.0)), np.zeros(3))
+    img = np.zeros(SIZE[::-1], np.uint8)
+    rp = rectify_pair(img, img, K, None, np.eye(4), K, None, T2)
+    assert rp.size == (960, 960)
+    centre = np.array([[(SIZE[0] - 1) / 2.0, (SIZE[1] - 1) / 2.0]])
+    assert np.allclose(apply_h(rp.rectification.H1, centre), [[479.5, 479.5]], atol=1e-6)
+
+
+@pytest.mark.parametrize("out_size", [(0, 48), (64, 0), (-3, 48)])
+def test_a_forced_canvas_of_no_pixels_is_refused(out_size):
+    intr = Intrinsics(*SMALL, K_SMALL)
+    with pytest.raises(StereoError, match="out_size must be positive"):
+        rectified_geometry(intr, np.eye(4), intr, sideways(90.0), out_size=out_size)
+
+
+def test_a_single_channel_image_is_rectified_like_the_grey_one():
+    rng = np.random.default_rng(3)
+    a, b = (rng.integers(0, 256, SMALL[::-1], dtype=np.uint8) for _ in range(2))
+    T2 = sideways(80.0, 0.05)
+    grey = rectify_pair(a, b, K_SMALL, None, np.eye(4), K_SMALL, None, T2)
+    one = rectify_pair(a[:, :, None], b[:, :, None], K_SMALL, None, np.eye(4), K_SMALL, None, T2)
+    assert np.array_equal(one.left.reshape(grey.left.shape), grey.left)
+    assert np.array_equal(one.right.reshape(grey.right.shape), grey.right)
+
+
+@pytest.mark.parametrize("image_angle_deg", [0.0, 30.0, -60.0, 89.0, 90.0])
+def test_reported_rotation_is_the_turn_of_the_left_images_rows(image_angle_deg):
+    """View 2 seen at ``image_angle_deg`` in view 1's image (y down): the rectified image turns by
+    minus that angle, so the baseline becomes its x axis; 0 reads as 0.0, not -0.0."""
+    a = math.radians(image_angle_deg)
+    T2 = make_T(np.eye(3), [0.1 * math.cos(a), 0.1 * math.sin(a), 0.0])
+    img = np.zeros(SMALL[::-1], np.uint8)
+    rp = rectify_pair(img, img, K_SMALL, None, np.eye(4), K_SMALL, None, T2)
+    assert not rp.swapped
+    assert rp.rotation_deg == pytest.approx(-image_angle_deg, abs=1e-9)
+    row = apply_h(rp.rectification.H1, np.array([[10.0, 20.0], [30.0, 20.0]]))
+    turn = math.degrees(math.atan2(*(row[1] - row[0])[::-1]))
+    assert rp.rotation_deg == pytest.approx(turn, abs=1e-9)
+    if image_angle_deg == 0.0:
+        assert math.copysign(1.0, rp.rotation_deg) == 1.0

@@ -248,3 +248,97 @@ def test_default_subpixel_step_recovers_a_fractional_disparity(d0):
     assert np.isfinite(fine).mean() > 0.95
     assert np.nanmedian(np.abs(coarse - d0)) >= 0.25  # integer labels: 0.3-0.5 px off
     assert np.nanmedian(np.abs(fine - d0)) < 0.08  # measured 0.006-0.05 px
+
+
+# --- contracts the mutation run (bench/results/mutation.md) found untested --------------------
+
+def test_options_are_keyword_only_and_the_inputs_may_be_named():
+    left, right = shifted_pair(4, shape=(20, 40), seed=8)
+    with pytest.raises(TypeError):
+        birchfield(left, right, 8, 2)  # a bare number is not silently taken as min_disparity
+    np.testing.assert_array_equal(birchfield(left=left, right=right, max_disparity=8),
+                                  birchfield(left, right, 8))
+
+
+def runtime(text: str) -> str:
+    """The same text as a new string object, as read from a config file or the command line
+    (a literal in this file would be the interned object the module compares against)."""
+    out = "".join(list(text))
+    assert out == text and out is not text
+    return out
+
+
+@pytest.mark.parametrize("options", [
+    dict(color="gray", search="exact"),  # the default summed-window kernel
+    dict(PAPER_OPTIONS, color="gray", search="exact"),  # the paper's exact programme
+])
+def test_option_strings_are_compared_by_value(options):
+    left, right = box_pair(1, 9, (30, 55, 5, 25), shape=(30, 90), seed=1)
+    literal = birchfield(left, right, 14, **options)
+    read = birchfield(left, right, 14, **{k: runtime(v) if isinstance(v, str) else v
+                                          for k, v in options.items()})
+    np.testing.assert_array_equal(read, literal)
+
+
+def test_the_option_string_test_can_tell_the_kernels_apart():
+    """On that scene the kernels a misread option would select answer differently."""
+    left, right = box_pair(1, 9, (30, 55, 5, 25), shape=(30, 90), seed=1)
+    default = birchfield(left, right, 14)
+    assert not np.array_equal(default, birchfield(left, right, 14, cost_window=(1, 1),
+                                                  slant_penalty=None), equal_nan=True)
+    paper = birchfield(left, right, 14, **PAPER_OPTIONS)
+    assert not np.array_equal(paper, birchfield(left, right, 14, **dict(PAPER_OPTIONS,
+                                                                        search="pruned")),
+                              equal_nan=True)
+
+
+def test_the_default_match_reward_is_the_documented_5_grey_levels():
+    # imported here: test_stereo_properties imports this module
+    from tests.armstereo.reconstruct.test_stereo_properties import low_contrast
+
+    left, right = (low_contrast(img, 0.2) for img in box_pair(1, 9, (30, 55, 5, 25),
+                                                                 shape=(30, 90), seed=2))
+    default = birchfield(left, right, 14)
+    np.testing.assert_array_equal(default, birchfield(left, right, 14, match_reward=5))
+    assert not np.array_equal(default, birchfield(left, right, 14, match_reward=4),
+                              equal_nan=True)
+
+
+def test_highpass_prefilter_runs_on_grey_matching():
+    left, right = shifted_pair(6, shape=(40, 80), seed=9)
+    disp = birchfield(left, right, 10, prefilter="highpass", color="gray", subpixel="none")
+    assert np.mean(disp[:, 6:] == 6) > 0.95
+    with pytest.raises(StereoError, match="grey matching only"):
+        birchfield(left, right, 10, prefilter="highpass", color="sum")
+
+
+def test_the_median_treats_the_windows_lowest_disparity_like_any_other():
+    """A surface at 5.3 px found at the bottom of the window (5 .. 11) or inside it (4 .. 10):
+    the same answer, postprocessing included."""
+    left, right = fractional_pair(5.3)
+    low = birchfield(left, right, 6, min_disparity=5)
+    inside = birchfield(left, right, 6, min_disparity=4)
+    ok = np.isfinite(low) & np.isfinite(inside)
+    assert ok.mean() > 0.9
+    np.testing.assert_allclose(low[ok], inside[ok], rtol=0, atol=1e-5)
+
+
+def test_a_match_on_the_right_images_first_column_is_kept_with_a_mask():
+    # the left pixel x = d matches right column 0; a right mask elsewhere must not drop it
+    left, right = shifted_pair(4, shape=(30, 60), seed=10)
+    rmask = np.ones(right.shape, bool)
+    rmask[:, 50:] = False  # e.g. rectification fill on the right side of the right image
+    disp = birchfield(left, right, 8, right_mask=rmask, subpixel="none")
+    np.testing.assert_array_equal(disp[:, 4:40], 4)
+
+
+def test_images_with_more_than_three_dimensions_are_refused():
+    img = np.zeros((20, 40, 1, 1), np.uint8)
+    with pytest.raises(StereoError, match=r"\(H, W\) grey or \(H, W, 3\) BGR"):
+        birchfield(img, img, 8)
+
+
+def test_too_wide_rows_message_names_the_penalty_in_grey_levels():
+    wide = np.zeros((1, 40_000, 3), np.uint8)
+    with pytest.raises(StereoError, match=r"3 channel\(s\) summed, occlusion penalty 25\)"):
+        birchfield(wide, wide, 8, color="sum")

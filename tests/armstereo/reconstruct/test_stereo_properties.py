@@ -11,6 +11,7 @@ values, so retuning a default does not break them.
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given
 from hypothesis import settings as hyp_settings
 from hypothesis import strategies as st
@@ -18,6 +19,7 @@ from hypothesis import strategies as st
 from armstereo.reconstruct.birchfield.aggregate import match_image_aggregated
 from armstereo.reconstruct.birchfield.dp_pruned import BORDER
 from armstereo.reconstruct.birchfield.matcher import DP_EXACT, DP_PRUNED, match_image
+from armstereo.reconstruct.birchfield.refine import left_right_mismatch
 from armstereo.reconstruct.stereo import PAPER_OPTIONS, SUBPIXEL_MAX_SHIFT, birchfield
 from tests.armstereo.reconstruct.test_stereo import fractional_pair, shifted_pair
 from tests.support.images import box_pair
@@ -218,3 +220,35 @@ def test_range_and_width_errors_name_the_numbers():
     with pytest.raises(StereoError, match=r"\(1 channel\(s\) summed, occlusion penalty 25\)"):
         # the per-pixel exact programme (the row-summed default rescales its costs instead)
         birchfield(wide, wide, 8, occlusion_penalty=25, cost_window=(1, 1), slant_penalty=None)
+
+
+# The matcher's answer without anything after the programme: whole disparities or NaN.
+WHOLE = dict(subpixel="none", postprocess="none", texture_threshold=0.0, occlusions="fill",
+             speckle_size=0, reward_texture=0.5)
+
+
+def window_index(disp: np.ndarray, min_d: int) -> np.ndarray:
+    """Whole disparities as the matcher's window indices, -1 for none."""
+    return np.ascontiguousarray(np.where(np.isfinite(disp), disp - min_d, -1), dtype=np.int32)
+
+
+@pytest.mark.parametrize("seed, min_d, reward_texture", [(0, 0, 0.5), (1, 2, 0.5), (2, 0, 0.0)])
+def test_the_left_right_check_matches_the_mirrored_pair_with_its_own_reward(seed, min_d,
+                                                                            reward_texture):
+    """The right-to-left pass is the same matcher run on the mirrored, swapped pair, flat pixels
+    of the right image earning no reward where they are (or every pixel rewarded, with
+    reward_texture 0 as in the paper): the check rejects exactly the left answers that the
+    mirrored pair's answer contradicts by more than one pixel."""
+    left, right = (img.copy() for img in box_pair(2, 10, (40, 80, 10, 40), shape=(50, 110),
+                                                  seed=seed))
+    left[:, 60:75], right[:, 50:65] = 120, 120  # flat stripes: no reward there
+    left[:, 90:105], right[:, 85:100] = 60, 60
+    options = dict(WHOLE, reward_texture=reward_texture, min_disparity=min_d)
+    plain = birchfield(left, right, 12, **options)
+    mirrored = birchfield(np.ascontiguousarray(right[:, ::-1]),
+                          np.ascontiguousarray(left[:, ::-1]), 12, **options)[:, ::-1]
+    contradicted = left_right_mismatch(window_index(plain, min_d), window_index(mirrored, min_d),
+                                       min_d, 1)
+    checked = birchfield(left, right, 12, lr_check=True, **options)
+    np.testing.assert_array_equal(checked, np.where(contradicted, np.nan, plain))
+    assert 0 < contradicted.mean() < 0.5

@@ -195,3 +195,44 @@ def test_bad_input_is_refused():
         point_cloud(d, g, np.zeros(d.shape, np.uint8), frame="world")
     with pytest.raises(StereoError, match="colour image"):
         point_cloud(d, g, np.zeros((5, 5), np.uint8))
+
+
+# ----------------------------------------------------------------------------------------------
+# Contracts the mutation run (bench/results/mutation.md) found untested
+# ----------------------------------------------------------------------------------------------
+def small_geometry(w: int = 7, h: int = 4) -> StereoGeometry:
+    return StereoGeometry(fx=600.0, fy=600.0, cx_left=3.0, cx_right=1.0, cy=2.0, baseline=0.1,
+                          size=(w, h), R_rect=np.eye(3), c_left=np.zeros(3),
+                          c_right=np.array([0.1, 0.0, 0.0]))
+
+
+@pytest.mark.parametrize("dtype", [np.float16, np.float32, np.float64, np.longdouble])
+def test_outputs_are_float32_unless_the_disparity_is_float64(dtype):
+    g = small_geometry()
+    d = np.full(g.size[::-1], 32.0, dtype=dtype)
+    want = np.float64 if np.dtype(dtype) == np.float64 else np.float32
+    assert depth_from_disparity(d, g).dtype == want
+    assert points_rect(d, g).dtype == want
+
+
+def test_size_mismatches_are_reported_as_width_x_height():
+    g = small_geometry(7, 4)
+    with pytest.raises(StereoError, match=r"disparity is 5x3 but the rectified canvas is 7x4"):
+        depth_from_disparity(np.zeros((3, 5), np.float32), g)
+    d = np.zeros((4, 7), np.float32)
+    with pytest.raises(StereoError, match=r"colour image is 6x2 but the disparity is 7x4"):
+        point_cloud(d, g, np.zeros((2, 6), np.uint8))
+
+
+def test_holes_do_not_bias_the_depth_of_their_neighbours():
+    """A constant disparity with scattered holes: every original-view pixel that still gets a
+    depth gets the hole-free one, however little of its sampling footprint fell on a hole."""
+    rp = rectified()
+    g = rp.geometry
+    d = np.full(g.size[::-1], g.disparity_offset + 42.0, np.float32)
+    full = depth_in_original_view(d, rp)
+    holes = np.random.default_rng(4).random(d.shape) < 0.05
+    est = depth_in_original_view(np.where(holes, np.nan, d), rp)
+    ok = np.isfinite(est)
+    assert 0.5 < ok.mean() < np.isfinite(full).mean()
+    np.testing.assert_allclose(est[ok], full[ok], rtol=1e-6)
