@@ -252,20 +252,24 @@ def _cosmic_ray(copy: Path, *args: str) -> None:
 def _retest_survivors(copy: Path, target: Target, kept: dict) -> dict:
     """Run the survivors of ``kept`` again (killed mutants stay killed while tests are only
     added) and mark those now killed."""
-    survivors = {(r["operator"], r["line"]) for r in kept["rows"] if not r["killed"]}
+    # Matched on the operator and the source text, not the line number: a fix elsewhere in
+    # the module may have moved the line since the kept run.
+    survivors = {(r["operator"], _mutated_lines(r["diff"])[0]) for r in kept["rows"]
+                 if not r["killed"]}
     if not survivors:
         return kept
     again = _run_target(copy, target, None, kept["seed"], only=survivors)
-    killed_now = {r["diff"] for r in again["rows"] if r["killed"]}
+    killed_now = {(r["operator"], *_mutated_lines(r["diff"])) for r in again["rows"]
+                  if r["killed"]}
     for row in kept["rows"]:
-        if not row["killed"] and row["diff"] in killed_now:
+        if not row["killed"] and (row["operator"], *_mutated_lines(row["diff"])) in killed_now:
             row["killed"] = True
     kept["retested"] = f"{len(again['rows'])} survivors on {again['date']}"
     return kept
 
 
 def _run_target(copy: Path, target: Target, sample: int | None, seed: int,
-                only: set[tuple[str, int]] | None = None) -> dict:
+                only: set[tuple[str, str]] | None = None) -> dict:
     from cosmic_ray.work_db import WorkDB, use_db
     from cosmic_ray.work_item import TestOutcome, WorkerOutcome, WorkResult
 
@@ -275,6 +279,7 @@ def _run_target(copy: Path, target: Target, sample: int | None, seed: int,
     _cosmic_ray(copy, "init", str(config), str(db))
     excluded = re.compile("|".join(EXCLUDED_OPERATORS))
     logging_lines = log_call_lines(copy / target.module)
+    source = (copy / target.module).read_text().splitlines()
     log_only = 0
     with use_db(str(db), WorkDB.Mode.open) as work:
         items = sorted(work.pending_work_items, key=lambda w: w.job_id)
@@ -287,7 +292,7 @@ def _run_target(copy: Path, target: Target, sample: int | None, seed: int,
             if m.start_pos[0] in logging_lines:
                 log_only += 1
                 continue
-            if only is None or (m.operator_name, m.start_pos[0]) in only:
+            if only is None or (m.operator_name, source[m.start_pos[0] - 1].strip()) in only:
                 keep.append(item)
         if sample is not None and len(keep) > sample:
             keep = random.Random(f"{seed}:{target.name}").sample(keep, sample)
