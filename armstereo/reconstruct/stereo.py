@@ -198,8 +198,9 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
     rx, ry = _window_radii(cost_window)
     if slant_penalty is not None and slant_penalty < 0:
         raise StereoError(f"slant_penalty must be >= 0 or None, got {slant_penalty}")
-    if texture_threshold < 0 or speckle_size < 0 or speckle_range < 0:
-        raise StereoError("texture_threshold, speckle_size and speckle_range must be >= 0")
+    if not (texture_threshold >= 0 and speckle_size >= 0 and speckle_range >= 0):  # NaN too
+        raise StereoError(f"texture_threshold ({texture_threshold}), speckle_size "
+                          f"({speckle_size}) and speckle_range ({speckle_range}) must be >= 0")
     if not photo_check >= 0:
         raise StereoError(f"photo_check must be >= 0 grey levels, got {photo_check}")
     if color != "gray" or search != "exact":  # only the paper's single-pixel kernels

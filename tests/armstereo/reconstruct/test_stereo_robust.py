@@ -250,3 +250,11 @@ def test_highpass_prefilter_undoes_a_brightness_gradient_between_the_views():
     assert share_right(filtered) > share_right(plain) + 0.2
     with pytest.raises(StereoError, match="prefilter"):
         birchfield(left8, right8, 20, prefilter="sharpen")
+
+
+@pytest.mark.parametrize("option", [dict(texture_threshold=-1.0), dict(texture_threshold=np.nan),
+                                    dict(speckle_size=-1), dict(speckle_range=np.nan)])
+def test_negative_or_nan_rejection_settings_are_refused(option):
+    img = texture((20, 60), 3)
+    with pytest.raises(StereoError, match="must be >= 0"):
+        birchfield(img, img, 8, **option)
