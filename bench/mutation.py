@@ -89,7 +89,7 @@ TARGETS = [
             "tests/armstereo/cli/test_capture_cmd.py"), kind="safety"),
     Target("mock-arm", "drivers/mock/arm.py",
            ("tests/drivers/mock/test_arm_stop.py", "tests/drivers/mock/test_arm.py",
-            "tests/armstereo/capture/test_run.py"),
+            "tests/drivers/mock/test_profile.py", "tests/armstereo/capture/test_run.py"),
            ("stop", "close", "wait_until_steady", "_execute", "_fail", "_halted",
             "_require_link", "_require_ready", "_check_positive"), kind="safety"),
     Target("ur-arm", "drivers/ur/arm.py",

@@ -179,3 +179,44 @@ def test_profiles_by_name_and_replace():
 def test_mock_arm_rejects_a_profile_name_it_does_not_know(model):
     with pytest.raises(ConfigError, match="unknown mock profile"):
         MockArm(model, profile="perfect")
+
+
+def ringing_arm(model):
+    """A realistic arm just after a 3 cm move, and how long its ringing takes to quieten (s)."""
+    arm = connected(model, seed=1)
+    T = arm.model.flange_pose(arm.joint_positions())
+    T[:3, 3] += [0.0, 0.03, 0.0]
+    arm.move_linear(T, 0.05, 0.25)
+    ring = REALISTIC.joints
+    return arm, ring.settle_time_constant_s * np.log(ring.settle_amplitude_rad / STEADY_RAD)
+
+
+def test_waiting_for_steady_gives_up_when_the_ringing_outlasts_the_timeout(model):
+    from armstereo.errors import MotionTimeout
+
+    arm, quiet_s = ringing_arm(model)
+    t0 = arm.clock.now()
+    with pytest.raises(MotionTimeout, match="not steady"):
+        arm.wait_until_steady(timeout=0.5 * quiet_s)
+    assert arm.clock.now() == t0  # it says so at once, without waiting for nothing
+    arm.wait_until_steady(timeout=1.01 * quiet_s)
+    assert arm.clock.now() - t0 == pytest.approx(quiet_s, abs=1e-6)
+
+
+def test_a_steady_arm_is_not_waited_for_again(model):
+    arm, quiet_s = ringing_arm(model)
+    arm.wait_until_steady()
+    arm.clock.sleep(0.2)
+    t0 = arm.clock.now()
+    arm.wait_until_steady()
+    assert arm.clock.now() == t0
+
+
+def test_without_ringing_the_arm_is_steady_when_the_move_returns(model):
+    arm = connected(model, profile="ideal")
+    T = arm.model.flange_pose(arm.joint_positions())
+    T[:3, 3] += [0.0, 0.03, 0.0]
+    arm.move_linear(T, 0.05, 0.25)
+    t0 = arm.clock.now()
+    arm.wait_until_steady(timeout=1e-3)
+    assert arm.clock.now() == t0 and np.array_equal(arm._true_q(), arm._q)
