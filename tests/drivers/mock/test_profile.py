@@ -220,3 +220,37 @@ def test_without_ringing_the_arm_is_steady_when_the_move_returns(model):
     t0 = arm.clock.now()
     arm.wait_until_steady(timeout=1e-3)
     assert arm.clock.now() == t0 and np.array_equal(arm._true_q(), arm._q)
+
+
+def test_a_wait_after_part_of_the_ringing_waits_only_the_rest(model):
+    arm, quiet_s = ringing_arm(model)
+    arm.clock.sleep(0.25 * quiet_s)
+    t0 = arm.clock.now()
+    arm.wait_until_steady()
+    assert arm.clock.now() - t0 == pytest.approx(0.75 * quiet_s, abs=1e-6)
+
+
+def test_the_timeout_itself_is_enough_and_an_arm_that_never_moved_is_steady(model):
+    import math
+
+    arm, _ = ringing_arm(model)
+    ring = REALISTIC.joints
+    quiet_s = ring.settle_time_constant_s * math.log(ring.settle_amplitude_rad / STEADY_RAD)
+    arm.wait_until_steady(timeout=quiet_s)  # exactly the time it needs: no timeout
+    fresh = connected(model, seed=2)
+    t0 = fresh.clock.now()
+    fresh.wait_until_steady()
+    assert fresh.clock.now() == t0
+
+
+def test_the_ringing_peaks_at_the_profiles_amplitude_on_its_largest_joint(model):
+    """A quarter period after the stop, the largest joint is exactly amplitude x envelope."""
+    import math
+
+    arm, _ = ringing_arm(model)
+    ring = REALISTIC.joints
+    t = 0.25 / ring.settle_frequency_hz
+    arm.clock.sleep(t)
+    deviation = np.max(np.abs(arm._true_q() - arm._q))
+    expected = ring.settle_amplitude_rad * math.exp(-t / ring.settle_time_constant_s)
+    assert deviation == pytest.approx(expected, rel=1e-6)
