@@ -395,9 +395,11 @@ def main(argv: list[str] | None = None) -> int:
         if args.save:
             save_pair(args.save, p, res)
     crosses = cross_pairs(pairs)
+    given = list(argv if argv is not None else sys.argv[1:])
+    # the data folder is the reader's own (the photographs are not in the repository)
+    shown = ["DIR" if i and given[i - 1] == "--data" else a for i, a in enumerate(given)]
     parts = [f"# Real multi-view photographs: Birchfield-Tomasi vs StereoSGBM\n\n"
-             f"Command: `.venv/bin/python bench/real_multiview.py "
-             f"{' '.join(argv if argv is not None else sys.argv[1:])}`  \n"
+             f"Command: `.venv/bin/python bench/real_multiview.py {' '.join(shown)}`  \n"
              f"Date: {time.strftime('%Y-%m-%d')}; one thread each. Variants: "
              + "; ".join(f"`{k}` = {json.dumps(v)}" for k, v in peers.items()) + "\n",
              ]
