@@ -75,7 +75,8 @@ class Target:
 TARGETS = [
     Target("plan", "armstereo/capture/plan.py",
            ("tests/armstereo/capture/test_plan.py",),
-           ("parse_direction", "around", "contains", "ok", "require_ok", "steps", "plan_capture",
+           ("parse_direction", "around", "contains", "ok", "require_ok", "require_checks", "steps",
+            "plan_capture",
             "validate_settings", "_translated", "check_speed", "_check_direction",
             "check_motion", "check_start", "sample_path", "check_path", "_view_joints",
             "_check_travel", "_estimate_duration"),

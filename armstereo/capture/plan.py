@@ -10,6 +10,7 @@ All poses are in the controller's ``base`` frame.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -150,6 +151,16 @@ class Check:
     detail: str
 
 
+def require_checks(checks: list[Check], hint: Callable[[Check], str] | None = None) -> None:
+    """Raise PreflightError naming the first failed check (nothing has moved); ``hint(check)``
+    is appended to its detail. Every plan and tour refuses to move through this one rule."""
+    for c in checks:
+        if not c.ok:
+            extra = hint(c) if hint is not None else ""
+            raise PreflightError(f"pre-flight check '{c.name}' failed: {c.detail}{extra}; "
+                                 "nothing moved")
+
+
 @dataclass
 class CapturePlan:
     """The checked plan: flange poses and joints per view, and every pre-flight check."""
@@ -168,10 +179,7 @@ class CapturePlan:
 
     def require_ok(self) -> None:
         """Raise PreflightError naming the first failed check (nothing has moved)."""
-        for c in self.checks:
-            if not c.ok:
-                raise PreflightError(f"pre-flight check '{c.name}' failed: {c.detail}; "
-                                     "nothing moved")
+        require_checks(self.checks)
 
     def steps(self) -> list[Step]:
         """The capture as steps: shoot view 0 where the arm stands, then per pair a straight

@@ -39,12 +39,12 @@ from armstereo.capture.plan import (
     check_motion,
     check_speed,
     check_start,
+    require_checks,
     sample_path,
     validate_settings,
 )
 from armstereo.capture.scan_plan import ScanPlan, ScanView, order_tour
 from armstereo.devices import trapezoid_duration
-from armstereo.errors import PreflightError
 from armstereo.kinematics import ArmModel
 
 JOINT_PATH_STEP_RAD = 0.01  # joint-move samples: at most this change of any joint apart
@@ -90,13 +90,7 @@ class ScanTour:
 
     def require_ok(self) -> None:
         """Raise PreflightError naming the first failed check (nothing has moved)."""
-        for c in self.checks:
-            if not c.ok:
-                hint = ("; no order of the viewpoints avoids that move (choose other --views, "
-                        "--elevation or --radius, or a --workspace that leaves the viewpoint "
-                        "out)" if " -> " in c.detail else "")
-                raise PreflightError(f"pre-flight check '{c.name}' failed: {c.detail}{hint}; "
-                                     "nothing moved")
+        require_checks(self.checks, _no_order_hint)
 
     def steps(self) -> list[Step]:
         """The tour as capture steps (module docstring)."""
@@ -363,3 +357,12 @@ def _check_workspace(model: ArmModel, legs: list[Leg], box: Workspace) -> Check:
                     return Check("workspace", False, f"{what} at ({p[0]:+.3f}, {p[1]:+.3f}, "
                                  f"{p[2]:+.3f}) on {leg.label} leaves {box}")
     return Check("workspace", True, f"flange and camera inside {box} on every move")
+
+
+def _no_order_hint(check: Check) -> str:
+    """A failed move between two viewpoints (" -> " in its detail) has no way round it."""
+    if " -> " not in check.detail:
+        return ""
+    return ("; no order of the viewpoints avoids that move (choose other --views, --elevation "
+            "or --radius, or a --workspace that leaves the viewpoint out)")
+

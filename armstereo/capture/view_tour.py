@@ -29,11 +29,11 @@ from armstereo.capture.plan import (
     Workspace,
     check_speed,
     check_start,
+    require_checks,
     validate_settings,
 )
 from armstereo.capture.tour import Leg, check_legs, joint_leg, joint_path
 from armstereo.devices import MotionLimits
-from armstereo.errors import PreflightError
 from armstereo.kinematics import ArmModel
 
 SAME_JOINTS_RAD = 1e-9  # a move shorter than this is not made
@@ -75,10 +75,7 @@ class ViewTour:
 
     def require_ok(self) -> None:
         """Raise PreflightError naming the first failed check (nothing has moved)."""
-        for c in self.checks:
-            if not c.ok:
-                raise PreflightError(f"pre-flight check '{c.name}' failed: {c.detail}; "
-                                     "nothing moved")
+        require_checks(self.checks)
 
     def steps(self) -> list[Step]:
         """Per view: a joint move (none for a view where the arm stands), a shot; then the

@@ -43,11 +43,12 @@ from armstereo.capture.plan import (
     Workspace,
     check_speed,
     check_start,
+    require_checks,
     validate_settings,
 )
 from armstereo.capture.scan_plan import DroppedView, ScanPlan, ScanView
 from armstereo.capture.tour import baseline_leg, check_legs, joint_leg
-from armstereo.errors import ArmstereoError, ConfigError, PreflightError
+from armstereo.errors import ArmstereoError, ConfigError
 from armstereo.frame import Frame
 from armstereo.fusion.tsdf import DepthFrame, Roi, TsdfVolume
 from armstereo.kinematics import ArmModel
@@ -203,10 +204,7 @@ class AutoTour:
 
     def require_ok(self) -> None:
         """Raise PreflightError naming the first failed check (nothing has moved)."""
-        for c in self.checks:
-            if not c.ok:
-                raise PreflightError(f"pre-flight check '{c.name}' failed: {c.detail}; "
-                                     "nothing moved")
+        require_checks(self.checks)
 
     def describe(self) -> list[str]:
         lines = self.scan.describe()
