@@ -161,8 +161,26 @@ def require_checks(checks: list[Check], hint: Callable[[Check], str] | None = No
                                  "nothing moved")
 
 
+class Checked:
+    """What every plan and tour shares: its ``checks`` decide whether anything may move."""
+
+    checks: list[Check]
+
+    def failure_hint(self, check: Check) -> str:
+        """Extra words for the refusal of a failed ``check`` (none by default)."""
+        return ""
+
+    @property
+    def ok(self) -> bool:
+        return all(c.ok for c in self.checks)
+
+    def require_ok(self) -> None:
+        """Raise PreflightError naming the first failed check (nothing has moved)."""
+        require_checks(self.checks, self.failure_hint)
+
+
 @dataclass
-class CapturePlan:
+class CapturePlan(Checked):
     """The checked plan: flange poses and joints per view, and every pre-flight check."""
 
     settings: CaptureSettings
@@ -172,14 +190,6 @@ class CapturePlan:
     camera_positions: list[np.ndarray]  # per view, base frame
     checks: list[Check]
     duration_s: float
-
-    @property
-    def ok(self) -> bool:
-        return all(c.ok for c in self.checks)
-
-    def require_ok(self) -> None:
-        """Raise PreflightError naming the first failed check (nothing has moved)."""
-        require_checks(self.checks)
 
     def steps(self) -> list[Step]:
         """The capture as steps: shoot view 0 where the arm stands, then per pair a straight

@@ -33,13 +33,13 @@ from armstereo.capture.plan import (
     MAX_SAMPLE_JUMP_RAD,
     CaptureSettings,
     Check,
+    Checked,
     PairStep,
     Step,
     Workspace,
     check_motion,
     check_speed,
     check_start,
-    require_checks,
     sample_path,
     validate_settings,
 )
@@ -66,7 +66,7 @@ class Leg:
 
 
 @dataclass
-class ScanTour:
+class ScanTour(Checked):
     """A scan plan checked as one tour: what :func:`armstereo.capture.run.run_capture` runs.
 
     ``scan`` holds the viewpoints in the order they are visited (routing may have reordered
@@ -84,13 +84,8 @@ class ScanTour:
     duration_s: float
     detours: int = 0
 
-    @property
-    def ok(self) -> bool:
-        return all(c.ok for c in self.checks)
-
-    def require_ok(self) -> None:
-        """Raise PreflightError naming the first failed check (nothing has moved)."""
-        require_checks(self.checks, _no_order_hint)
+    def failure_hint(self, check: Check) -> str:
+        return _no_order_hint(check)
 
     def steps(self) -> list[Step]:
         """The tour as capture steps (module docstring)."""

@@ -25,11 +25,11 @@ import numpy as np
 from armstereo.capture.plan import (
     CaptureSettings,
     Check,
+    Checked,
     Step,
     Workspace,
     check_speed,
     check_start,
-    require_checks,
     validate_settings,
 )
 from armstereo.capture.tour import Leg, check_legs, joint_leg, joint_path
@@ -53,7 +53,7 @@ def tour_settings(*, settle_s: float = 0.5, limits: MotionLimits | None = None,
 
 
 @dataclass
-class ViewTour:
+class ViewTour(Checked):
     """The checked tour. ``settings.limits`` holds the joint speed and acceleration the tour
     moves at (see the module doc); ``requested`` the caps asked for; ``legs[k]`` is the move
     into view ``k`` (None for view 0 when the arm already stands there), the last one the
@@ -68,14 +68,6 @@ class ViewTour:
     checks: list[Check]
     lever_m: float
     duration_s: float
-
-    @property
-    def ok(self) -> bool:
-        return all(c.ok for c in self.checks)
-
-    def require_ok(self) -> None:
-        """Raise PreflightError naming the first failed check (nothing has moved)."""
-        require_checks(self.checks)
 
     def steps(self) -> list[Step]:
         """Per view: a joint move (none for a view where the arm stands), a shot; then the

@@ -38,12 +38,12 @@ from armstereo.camera_model import Intrinsics
 from armstereo.capture.plan import (
     CaptureSettings,
     Check,
+    Checked,
     PairStep,
     Step,
     Workspace,
     check_speed,
     check_start,
-    require_checks,
     validate_settings,
 )
 from armstereo.capture.scan_plan import DroppedView, ScanPlan, ScanView
@@ -166,7 +166,7 @@ def _count_unknown(tsdf, weight, origin, voxel, eye, dirs, step, ilo, ihi):  # p
 
 
 @dataclass
-class AutoTour:
+class AutoTour(Checked):
     """A scan whose viewpoints are chosen while scanning (module docstring); runs in
     :func:`armstereo.capture.run.run_capture` with :meth:`observer` as its ``on_view``.
 
@@ -197,14 +197,6 @@ class AutoTour:
     @property
     def q_start(self) -> np.ndarray:
         return np.asarray(self.scan.q_start, float)
-
-    @property
-    def ok(self) -> bool:
-        return all(c.ok for c in self.checks)
-
-    def require_ok(self) -> None:
-        """Raise PreflightError naming the first failed check (nothing has moved)."""
-        require_checks(self.checks)
 
     def describe(self) -> list[str]:
         lines = self.scan.describe()
