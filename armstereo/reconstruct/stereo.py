@@ -208,8 +208,10 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
     aggregated = (rx, ry) != (0, 0) or slant_penalty is not None
     gl, gr = _grey(left), _grey(right)
     grey_l, grey_r = gl, gr  # the photo-consistency check reads the unfiltered images
-    flat = _textureless(gl, texture_threshold) if texture_threshold > 0 else None
-    textured_l, textured_r = _rewarded(gl, reward_texture), _rewarded(gr, reward_texture)
+    # one texture map of the left image serves both thresholds
+    strength = _texture_strength(gl) if texture_threshold > 0 or reward_texture > 0 else None
+    flat = strength < texture_threshold if texture_threshold > 0 else None
+    textured_l = _rewarded(strength, reward_texture)
     if prefilter not in PREFILTER_MODES:
         raise StereoError(f"prefilter={prefilter!r} is not one of {', '.join(PREFILTER_MODES)}")
     if prefilter == "highpass":
@@ -230,28 +232,29 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
                       slant_penalty * units)), aggregated=aggregated,
                   paper_postprocess=postprocess == "paper")
     idx, state = _match(ml, mr, lmask, rmask, textured=textured_l, **params)
+    dense = idx.astype(np.float32)  # _match has set -1 on every pixel it rejects
     if subpixel == "fast":
-        offset = _gradient_step(gl, gr, idx, min_disparity)
-    else:
-        offset = np.zeros(idx.shape, np.float32)
-    dense = idx.astype(np.float32) + offset
+        dense += _gradient_step(gl, gr, idx, min_disparity)
     if postprocess == "median":
-        dense = np.where(idx >= 0, cv2.medianBlur(dense, MEDIAN_SIZE), dense)
-    reject = (idx < 0) | (state >= _dp.BORDER)
+        dense = _median(dense, idx)
+    reject = idx < 0
+    masked = np.where(reject, np.float32(np.nan), dense)  # NaN where rejected so far
     if flat is not None:
-        reject |= _unsupported(np.where(reject, np.nan, dense), flat, FLAT_TOLERANCE)
+        _reject(masked, reject, _unsupported(masked, flat, FLAT_TOLERANCE))
     if occlusions == "nan":
-        reject |= _hidden_by_nearer(np.where(reject, np.nan, dense), OCCLUSION_MARGIN)
+        _reject(masked, reject, _hidden_by_nearer(masked, OCCLUSION_MARGIN))
     if lr_check:
-        textured_rm = None if textured_r is None else textured_r[:, ::-1]  # None: reward all
+        textured_r = _rewarded(_texture_strength(grey_r), reward_texture)
         idx_r, state_r = _match(mr[:, ::-1], ml[:, ::-1], rmask[:, ::-1], lmask[:, ::-1],
-                                   textured=textured_rm, **params)
+                                textured=None if textured_r is None else textured_r[:, ::-1],
+                                **params)
         # mirrored, swapped pair: its "left" is the mirrored right image
         idx_r = np.where(state_r >= _dp.BORDER, -1, idx_r)
         idx_r = np.ascontiguousarray(idx_r[:, ::-1])
-        reject |= left_right_mismatch(np.where(reject, -1, idx), idx_r, min_disparity, 1)
-    disp = dense + np.float32(min_disparity)
-    disp[reject] = np.nan
+        _reject(masked, reject, left_right_mismatch(np.where(reject, -1, idx), idx_r,
+                                                    min_disparity, 1))
+    disp = masked
+    disp += np.float32(min_disparity)
     if photo_check > 0:  # before the speckle filter, which removes what it leaves isolated
         disp[_photo_inconsistent(grey_l, grey_r, disp, photo_check)] = np.nan
     if subpixel in ("gradient", "parabola"):
@@ -269,6 +272,20 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
     # into the right image's fill or past its edge, which the programme itself never matches.
     _reject_invalid_partners(disp, rmask)
     return disp
+
+
+def _reject(masked: np.ndarray, reject: np.ndarray, new: np.ndarray) -> None:
+    """Add ``new`` to the (H, W) bool ``reject`` and set NaN there in ``masked`` (in place)."""
+    reject |= new
+    masked[new] = np.nan
+
+
+def _median(dense: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """MEDIAN_SIZE median of the float32 map on matched pixels (``idx >= 0``); the others keep
+    their values."""
+    out = cv2.medianBlur(dense, MEDIAN_SIZE)
+    np.copyto(out, dense, where=idx < 0)
+    return out
 
 
 def _photo_inconsistent(left: np.ndarray, right: np.ndarray, disp: np.ndarray,
@@ -330,19 +347,29 @@ def _gradient_step(left: np.ndarray, right: np.ndarray, idx: np.ndarray,
     H, W = idx.shape
     # central differences (the 1x3 Sobel kernel, halved)
     gl = cv2.Sobel(left, cv2.CV_32F, 1, 0, ksize=1, scale=0.5)
-    gr = cv2.Sobel(right, cv2.CV_32F, 1, 0, ksize=1, scale=0.5)
-    xr = np.arange(W, dtype=np.int32)[None, :] - (idx + np.int32(dmin))
-    ok = (idx >= 0) & (xr >= 1) & (xr <= W - 2)
-    at = np.where(ok, xr, 0) + np.arange(0, H * W, W, dtype=np.int32)[:, None]  # flat index
-    half = np.float32(0.5)
-    g = np.where(ok, half * (gl + gr.ravel().take(at)), np.float32(0))
-    e = left.astype(np.float32) - right.ravel().take(at)
+    g = cv2.Sobel(right, cv2.CV_32F, 1, 0, ksize=1, scale=0.5)
+    # partner column minus one, xr - 1 = x - dmin - 1 - idx: usable where 0 <= xr - 1 <= W - 3
+    at = np.arange(-dmin - 1, W - dmin - 1, dtype=np.int32) - idx
+    off = np.greater_equal(at.view(np.uint32), np.uint32(W - 2))  # one test for both ends
+    off |= idx < 0
+    at += np.arange(1, H * W, W, dtype=np.int32)[:, None]  # flat index of the partner
+    # where off, any pixel will do (its g is zeroed): "clip" keeps the index in the image
+    g = g.ravel().take(at, mode="clip")
+    g += gl
+    g *= np.float32(0.5)
+    g[off] = 0
+    e = left.astype(np.float32)
+    e -= right.ravel().take(at, mode="clip")
+    e *= g
+    g *= g
     win = (SUBPIXEL_WINDOW, SUBPIXEL_WINDOW)
-    sgg = cv2.boxFilter(g * g, -1, win, normalize=False)
-    sge = cv2.boxFilter(g * e, -1, win, normalize=False)
+    sgg = cv2.boxFilter(g, -1, win, dst=g, normalize=False)
+    step = cv2.boxFilter(e, -1, win, dst=e, normalize=False)
     with np.errstate(invalid="ignore", divide="ignore"):
-        step = np.where(sgg > SUBPIXEL_MIN_GRADIENT, -sge / sgg, np.float32(0))
-    return np.clip(step, -SUBPIXEL_MAX_SHIFT, SUBPIXEL_MAX_SHIFT).astype(np.float32)
+        np.divide(step, sgg, out=step)
+    np.negative(step, out=step)
+    step[~(sgg > SUBPIXEL_MIN_GRADIENT)] = 0
+    return np.clip(step, -SUBPIXEL_MAX_SHIFT, SUBPIXEL_MAX_SHIFT, out=step)
 
 
 def _postprocess_mode(postprocess: bool | str) -> str:
@@ -353,11 +380,12 @@ def _postprocess_mode(postprocess: bool | str) -> str:
     return postprocess
 
 
-def _rewarded(grey: np.ndarray, threshold: float) -> np.ndarray | None:
-    """Left pixels whose match earns the reward: those with texture (None = all)."""
+def _rewarded(strength: np.ndarray | None, threshold: float) -> np.ndarray | None:
+    """Pixels whose match earns the reward: those with texture (None = all), from
+    :func:`_texture_strength`."""
     if threshold <= 0:
         return None
-    return ~_textureless(np.ascontiguousarray(grey), threshold)
+    return ~(strength < threshold)
 
 
 def _window_radii(cost_window) -> tuple[int, int]:
@@ -378,11 +406,13 @@ def _hidden_by_nearer(disp: np.ndarray, margin: float) -> np.ndarray:
     (``margin = 1`` tolerates the one-pixel ties of slanted surfaces). NaN takes no part.
     """
     H, W = disp.shape
-    xr = np.arange(W, dtype=np.float32)[None, :] - disp
-    xr = np.where(np.isnan(xr), np.float32(np.inf), xr)
+    xr = np.arange(W, dtype=np.float32) - disp
+    xr[np.isnan(xr)] = np.inf
     lowest = np.minimum.accumulate(xr[:, ::-1], axis=1)[:, ::-1]  # min over x' >= x
-    right_of = np.concatenate([lowest[:, 1:], np.full((H, 1), np.inf, np.float32)], axis=1)
-    return xr >= right_of + margin
+    hidden = np.empty((H, W), np.bool_)
+    np.greater_equal(xr[:, :-1], lowest[:, 1:] + margin, out=hidden[:, :-1])
+    hidden[:, -1] = xr[:, -1] >= np.float32(np.inf) + margin  # nothing right of the last
+    return hidden
 
 
 def _unsupported(disp: np.ndarray, flat: np.ndarray, tolerance: float) -> np.ndarray:
@@ -394,52 +424,67 @@ def _unsupported(disp: np.ndarray, flat: np.ndarray, tolerance: float) -> np.nda
     ``tolerance``): a plain wall between two edges of the same surface, not a gap or a
     background that the programme had to invent a disparity for.
     """
-    # transposed, so that the running maxima/minima along a row run down contiguous columns
-    dT = np.ascontiguousarray(disp.T)
-    W, H = dT.shape
-    finite = np.isfinite(dT)
-    anchor = ~np.ascontiguousarray(flat.T) & finite
-    cols = np.broadcast_to(np.arange(W, dtype=np.int32)[:, None], (W, H))
-    none_l, none_r = np.int32(-1), np.int32(W)
-    # nearest anchor on each side, and where the run of finite pixels ends on each side
-    left = np.maximum.accumulate(np.where(anchor, cols, none_l), axis=0)
-    right = np.minimum.accumulate(np.where(anchor, cols, none_r)[::-1], axis=0)[::-1]
-    start = np.maximum.accumulate(np.where(finite, none_l, cols), axis=0)
-    stop = np.minimum.accumulate(np.where(finite, none_r, cols)[::-1], axis=0)[::-1]
-    has_left, has_right = left > start, right < stop
-    left = np.where(has_left, left, cols)
-    right = np.where(has_right, right, cols)
-    flat_d, lane = dT.ravel(), np.arange(H, dtype=np.int32)[None, :]
+    H, W = disp.shape
+    finite = np.isfinite(disp)
+    query = flat & finite  # the only pixels that can be kept
+    ys, xs = np.nonzero(query)
+    out = flat & ~finite
+    if ys.size == 0:
+        return out
+    # One running maximum finds, for every pixel, the nearest pixel at or left of it that is an
+    # anchor (textured, with a disparity) or a break (no disparity): its code is 2 c + 1 or
+    # 2 c (column c), -1 for neither. Likewise to the right with a running minimum, codes 2 c
+    # or 2 c + 1 (2 W for neither). code >> 1 is the column, the low bit which of the two.
+    itype = np.int16 if 2 * W + 1 <= np.iinfo(np.int16).max else np.int32
+    twice = np.arange(0, 2 * W, 2, dtype=itype)
+    event = ~query
+    anchor = ~flat & finite
+    lcode = (twice + 1 + anchor) * event - 1
+    np.maximum.accumulate(lcode, axis=1, out=lcode)
+    rcode = (twice + 1 - anchor - 2 * W) * event + 2 * W
+    rcode = np.minimum.accumulate(rcode[:, ::-1], axis=1)[:, ::-1]
+    lq, rq = lcode[ys, xs], rcode[ys, xs]
+    has_left = ((lq & 1) == 1) & (lq > 0)
+    has_right = ((rq & 1) == 0) & (rq < 2 * W)
+    lq >>= 1  # the anchor's column where it exists, else where the run of disparities starts
+    rq >>= 1  # ... and where it stops (W: the row's end)
+    xs = xs.astype(itype)
+    left = np.where(has_left, lq, xs)
+    right = np.where(has_right, rq, xs)
     nan = np.float32(np.nan)
-    d_left = np.where(has_left, flat_d.take(left * np.int32(H) + lane), nan)
-    d_right = np.where(has_right, flat_d.take(right * np.int32(H) + lane), nan)
+    d_left = np.where(has_left, disp[ys, left], nan)
+    d_right = np.where(has_right, disp[ys, right], nan)
     # a pixel squeezed between the run's end and an anchor within a texture window of it
     # needs that anchor only
     near = 2 * TEXTURE_WINDOW
-    d_left = np.where(~has_left & (right - start <= near), d_right, d_left)
-    d_right = np.where(~has_right & (stop - left <= near), d_left, d_right)
+    d_left = np.where(~has_left & (right - lq <= near), d_right, d_left)
+    d_right = np.where(~has_right & (rq - left <= near), d_left, d_right)
+    d = disp[ys, xs]
     with np.errstate(invalid="ignore"):
         span = tolerance + FLAT_SLOPE * (right - left)  # a slanted surface may change
         ok = (np.abs(d_left - d_right) <= span) & (
-            dT >= np.fmin(d_left, d_right) - tolerance) & (
-            dT <= np.fmax(d_left, d_right) + tolerance)
-    ok = ok.T
-    return flat & ~ok
+            d >= np.fmin(d_left, d_right) - tolerance) & (
+            d <= np.fmax(d_left, d_right) + tolerance)
+    out[ys, xs] = ~ok
+    return out
 
 
-def _textureless(grey: np.ndarray, threshold: float) -> np.ndarray:
-    """Pixels whose mean absolute horizontal gradient over the texture window is below
-    ``threshold`` grey levels per pixel (Sobel / 8 = central difference, smoothed)."""
-    gx = np.abs(cv2.Sobel(grey, cv2.CV_32F, 1, 0, ksize=3)) * np.float32(1 / 8)
-    return cv2.blur(gx, (TEXTURE_WINDOW, TEXTURE_WINDOW)) < threshold
+def _texture_strength(grey: np.ndarray) -> np.ndarray:
+    """Mean absolute horizontal gradient over the TEXTURE_WINDOW square, grey levels per
+    pixel (Sobel / 8 = central difference, smoothed): below a threshold a pixel is flat."""
+    # scale 1/8 inside the filter: exact, as every Sobel sum is an integer
+    gx = cv2.Sobel(grey, cv2.CV_32F, 1, 0, ksize=3, scale=1 / 8)
+    np.abs(gx, out=gx)
+    return cv2.blur(gx, (TEXTURE_WINDOW, TEXTURE_WINDOW), dst=gx)
 
 
 def _remove_speckles(disp: np.ndarray, size: int, max_diff: float) -> None:
     """NaN on small regions of similar disparity (in place; OpenCV's filterSpeckles on a
     1/16-pixel int16 copy)."""
-    ok = np.isfinite(disp)
-    fixed = np.full(disp.shape, -1, np.int16)
-    fixed[ok] = np.rint(disp[ok] * 16).astype(np.int16)
+    fixed = disp * np.float32(16)
+    np.rint(fixed, out=fixed)
+    fixed[~np.isfinite(disp)] = -1
+    fixed = fixed.astype(np.int16)
     cv2.filterSpeckles(fixed, -1, int(size), int(round(max_diff * 16)))
     disp[fixed < 0] = np.nan
 
