@@ -70,6 +70,8 @@ SGBM = "StereoSGBM"
 class StageTimer:
     """Wraps functions so that each call adds its own time (minus nested wrapped calls)."""
 
+    clock = staticmethod(time.process_time)
+
     def __init__(self):
         self.own: dict[str, float] = {}
         self._stack: list[float] = []  # time spent in nested wrapped calls, per open call
@@ -77,11 +79,11 @@ class StageTimer:
     def wrap(self, func, label: str):
         def timed(*args, **kwargs):
             self._stack.append(0.0)
-            t0 = time.perf_counter()
+            t0 = self.clock()
             try:
                 return func(*args, **kwargs)
             finally:
-                total = time.perf_counter() - t0
+                total = self.clock() - t0
                 nested = self._stack.pop()
                 self.own[label] = self.own.get(label, 0.0) + total - nested
                 if self._stack:
@@ -138,11 +140,11 @@ def _time_case(stereo, case, options: dict, repeats: int, timer: StageTimer) -> 
     runs = []
     for _ in range(repeats):
         timer.own.clear()
-        t0 = time.perf_counter()
+        t0 = timer.clock()
         stereo.birchfield(*args, min_disparity=case.min_disparity, **options)
-        t1 = time.perf_counter()
+        t1 = timer.clock()
         stereo.sgbm(*args, min_disparity=case.min_disparity)
-        t2 = time.perf_counter()
+        t2 = timer.clock()
         runs.append(dict(timer.own, **{TOTAL: t1 - t0, SGBM: t2 - t1}))
     return runs
 
@@ -177,7 +179,7 @@ def run_worker(src: str | None, args) -> dict:
         env["PYTHONPATH"] = os.pathsep.join([str(Path(src).resolve()),
                                              env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
     cmd = [sys.executable, __file__, "--worker", "--repeats", str(args.repeats),
-           "--options", args.options]
+           "--options", args.options, "--clock", args.clock]
     for name in args.case or ():
         cmd += ["--case", name]
     done = subprocess.run(cmd, env=env, capture_output=True, text=True)
@@ -258,6 +260,9 @@ def main(argv: list[str] | None = None) -> int:
                              "compare (default: this checkout)")
     parser.add_argument("--options", default="{}", help="JSON of birchfield() options")
     parser.add_argument("--case", action="append", help="only this pair (repeatable)")
+    parser.add_argument("--clock", choices=("cpu", "wall"), default="cpu",
+                        help="process CPU time (default: steadier on a shared machine, and "
+                             "the same as wall time for one thread) or wall time")
     parser.add_argument("--cprofile", action="store_true",
                         help="print cProfile's view of the call on cones and stop")
     parser.add_argument("--out", type=Path, default=None,
@@ -265,6 +270,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     options = json.loads(args.options)
+    if args.clock == "wall":
+        StageTimer.clock = staticmethod(time.perf_counter)
     if args.worker:
         print(json.dumps(worker(args.repeats, options, args.case)))
         return 0
@@ -286,7 +293,8 @@ def main(argv: list[str] | None = None) -> int:
              f"{' '.join(argv if argv is not None else sys.argv[1:])}`  \n"
              f"Date: {time.strftime('%Y-%m-%d')}; {os.cpu_count()} cores, load average "
              f"{min(load):.1f}-{max(load):.1f} during the run; options {args.options}. "
-             f"Medians of {args.repeats} x {args.rounds} runs per variant, in milliseconds.\n",
+             f"Medians of {args.repeats} x {args.rounds} runs per variant, in milliseconds "
+             f"of {'process CPU' if args.clock == 'cpu' else 'wall'} time.\n",
              "## Per pair\n\n" + summary_table(merged)]
     for case in first["cases"]:
         parts.append(f"## Stages: {case}\n\n" + stage_table(case, merged))

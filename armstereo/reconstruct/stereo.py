@@ -270,7 +270,7 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
     disp = _clip_to_window(disp, min_disparity, max_disparity)
     # The median and the sub-pixel steps move disparities after matching: one may now point
     # into the right image's fill or past its edge, which the programme itself never matches.
-    _reject_invalid_partners(disp, rmask)
+    _reject_invalid_partners(disp, rmask, min_disparity + max_disparity)
     return disp
 
 
@@ -358,8 +358,7 @@ def _gradient_step(left: np.ndarray, right: np.ndarray, idx: np.ndarray,
     g += gl
     g *= np.float32(0.5)
     g[off] = 0
-    e = left.astype(np.float32)
-    e -= right.ravel().take(at, mode="clip")
+    e = cv2.subtract(left, right.ravel().take(at, mode="clip"), dtype=cv2.CV_32F)
     e *= g
     g *= g
     win = (SUBPIXEL_WINDOW, SUBPIXEL_WINDOW)
@@ -427,45 +426,45 @@ def _unsupported(disp: np.ndarray, flat: np.ndarray, tolerance: float) -> np.nda
     H, W = disp.shape
     finite = np.isfinite(disp)
     query = flat & finite  # the only pixels that can be kept
-    ys, xs = np.nonzero(query)
     out = flat & ~finite
-    if ys.size == 0:
+    at = np.flatnonzero(query).astype(np.int32)
+    if at.size == 0:
         return out
-    # One running maximum finds, for every pixel, the nearest pixel at or left of it that is an
-    # anchor (textured, with a disparity) or a break (no disparity): its code is 2 c + 1 or
-    # 2 c (column c), -1 for neither. Likewise to the right with a running minimum, codes 2 c
-    # or 2 c + 1 (2 W for neither). code >> 1 is the column, the low bit which of the two.
-    itype = np.int16 if 2 * W + 1 <= np.iinfo(np.int16).max else np.int32
-    twice = np.arange(0, 2 * W, 2, dtype=itype)
+    # One running maximum along each row finds, for every pixel, the nearest pixel at or left
+    # of it that is an anchor (textured, with a disparity) or a break (no disparity), coded
+    # 2 i + 1 or 2 i by its flat index i (none: a break just before the row). Likewise to the
+    # right with a running minimum, codes 2 i or 2 i + 1 (none: a break just after the row).
+    # code >> 1 is the flat index, the low bit tells which of the two it is.
+    twice = np.arange(0, 2 * W, 2, dtype=np.int32)
+    row = np.arange(0, 2 * H * W, 2 * W, dtype=np.int32)[:, None]
     event = ~query
     anchor = ~flat & finite
-    lcode = (twice + 1 + anchor) * event - 1
-    np.maximum.accumulate(lcode, axis=1, out=lcode)
-    rcode = (twice + 1 - anchor - 2 * W) * event + 2 * W
-    rcode = np.minimum.accumulate(rcode[:, ::-1], axis=1)[:, ::-1]
-    lq, rq = lcode[ys, xs], rcode[ys, xs]
-    has_left = ((lq & 1) == 1) & (lq > 0)
-    has_right = ((rq & 1) == 0) & (rq < 2 * W)
-    lq >>= 1  # the anchor's column where it exists, else where the run of disparities starts
-    rq >>= 1  # ... and where it stops (W: the row's end)
-    xs = xs.astype(itype)
-    left = np.where(has_left, lq, xs)
-    right = np.where(has_right, rq, xs)
+    code = (twice + 2 + anchor) * event + (row - 2)
+    lq = np.maximum.accumulate(code, axis=1, out=code).ravel().take(at)
+    code = (twice - anchor - 2 * W) * event + (row + 2 * W + 1)
+    rq = np.minimum.accumulate(code[:, ::-1], axis=1)[:, ::-1].ravel().take(at)
+    has_left = (lq & 1).astype(np.bool_)
+    has_right = ~(rq & 1).astype(np.bool_)
+    lq >>= 1  # the anchor where it exists, else the break where the run of disparities starts
+    rq >>= 1  # ... and where it stops
+    left = np.where(has_left, lq, at)
+    right = np.where(has_right, rq, at)
+    flat_d = disp.ravel()
     nan = np.float32(np.nan)
-    d_left = np.where(has_left, disp[ys, left], nan)
-    d_right = np.where(has_right, disp[ys, right], nan)
+    d_left = np.where(has_left, flat_d.take(left), nan)
+    d_right = np.where(has_right, flat_d.take(right), nan)
     # a pixel squeezed between the run's end and an anchor within a texture window of it
     # needs that anchor only
     near = 2 * TEXTURE_WINDOW
     d_left = np.where(~has_left & (right - lq <= near), d_right, d_left)
     d_right = np.where(~has_right & (rq - left <= near), d_left, d_right)
-    d = disp[ys, xs]
+    d = flat_d.take(at)
     with np.errstate(invalid="ignore"):
         span = tolerance + FLAT_SLOPE * (right - left)  # a slanted surface may change
         ok = (np.abs(d_left - d_right) <= span) & (
             d >= np.fmin(d_left, d_right) - tolerance) & (
             d <= np.fmax(d_left, d_right) + tolerance)
-    out[ys, xs] = ~ok
+    out.ravel()[at] = ~ok
     return out
 
 
@@ -566,19 +565,26 @@ def sgbm(left: np.ndarray, right: np.ndarray, max_disparity: int, *, min_dispari
     return disp
 
 
-def _reject_invalid_partners(disp: np.ndarray, rmask: np.ndarray) -> None:
+def _reject_invalid_partners(disp: np.ndarray, rmask: np.ndarray,
+                             largest: float | None = None) -> None:
     """NaN where the matched right pixel ``x - d`` (nearest pixel) is outside the right image
-    or its validity mask (in place)."""
+    or its validity mask (in place). ``largest``: no disparity exceeds it (None: unknown)."""
     H, W = disp.shape
     if rmask.all():  # only the left edge can be crossed (d >= 0); NaN compares False
+        # x - d < -1/2 needs x < d: only the columns left of the largest disparity
+        band = disp if largest is None else disp[:, :max(0, min(W, int(np.ceil(largest))))]
         with np.errstate(invalid="ignore"):
-            disp[np.rint(np.arange(W, dtype=np.float32) - disp) < 0] = np.nan
+            band[np.rint(np.arange(band.shape[1], dtype=np.float32) - band) < 0] = np.nan
         return
-    ys, xs = np.nonzero(np.isfinite(disp))
-    xr = np.rint(xs - disp[ys, xs]).astype(np.int64)
-    off = (xr < 0) | (xr >= W)
-    off[~off] = ~rmask[ys[~off], xr[~off]]
-    disp[ys[off], xs[off]] = np.nan
+    xr = np.rint(np.arange(W, dtype=np.float64) - disp)  # NaN stays NaN
+    with np.errstate(invalid="ignore"):
+        inside = (xr >= 0) & (xr < W)  # False on NaN
+    at = np.where(inside, xr, 0).astype(np.int32)
+    at += np.arange(0, H * W, W, dtype=np.int32)[:, None]  # flat index of the partner
+    off = ~rmask.ravel().take(at)
+    off &= inside
+    off |= ~inside & np.isfinite(disp)
+    disp[off] = np.nan
 
 
 def _squeeze(img: np.ndarray) -> np.ndarray:
