@@ -63,6 +63,8 @@ DP = "DP: match_block"
 SUBPIXEL = "sub-pixel: fast"
 TOTAL = "total birchfield()"
 SGBM = "StereoSGBM"
+MASK_TURN = 2.0  # degrees
+MASK_ZOOM = 1.03
 
 
 # --- worker (one process, one source tree) ----------------------------------------------------
@@ -100,7 +102,19 @@ def _bench_cases():
     return module.middlebury_cases() + module.synthetic_cases()
 
 
-def worker(repeats: int, options: dict, only: list[str] | None) -> dict:
+def rectification_masks(shape: tuple[int, ...]) -> tuple:
+    """Validity masks like a rectification's (the image turned by +-MASK_TURN degrees and
+    enlarged by MASK_ZOOM, black corners outside): for timing the masked code paths."""
+    import cv2
+    import numpy as np
+
+    H, W = shape[:2]
+    ones = np.ones((H, W), np.uint8)
+    return tuple(cv2.warpAffine(ones, cv2.getRotationMatrix2D((W / 2, H / 2), turn, MASK_ZOOM),
+                                (W, H)) > 0 for turn in (MASK_TURN, -MASK_TURN))
+
+
+def worker(repeats: int, options: dict, only: list[str] | None, masked: bool) -> dict:
     """Median own time of each stage, of the whole call and of SGBM, per case (seconds)."""
     import cv2
     import numba
@@ -124,7 +138,11 @@ def worker(repeats: int, options: dict, only: list[str] | None) -> dict:
         present.append(label)
     out = {"present": present, "cases": {}}
     for case in cases:
-        runs = _time_case(stereo, case, options, repeats, timer)
+        masks = {}
+        if masked:
+            masks = dict(zip(("left_mask", "right_mask"), rectification_masks(case.left.shape),
+                             strict=True))
+        runs = _time_case(stereo, case, options, masks, repeats, timer)
         labels = {k for r in runs for k in r}
         out["cases"][case.name] = res = {k: [r.get(k, 0.0) for r in runs] for k in labels}
         print(f"  {case.name}: birchfield {1000 * statistics.median(res[TOTAL]):.1f} ms, "
@@ -132,18 +150,20 @@ def worker(repeats: int, options: dict, only: list[str] | None) -> dict:
     return out
 
 
-def _time_case(stereo, case, options: dict, repeats: int, timer: StageTimer) -> list[dict]:
+def _time_case(stereo, case, options: dict, masks: dict, repeats: int,
+               timer: StageTimer) -> list[dict]:
     """``repeats`` runs of birchfield() then SGBM, after one warm-up of each."""
     args = (case.left, case.right, case.max_disparity)
+    options = dict(options, **masks)
     stereo.birchfield(*args, min_disparity=case.min_disparity, **options)
-    stereo.sgbm(*args, min_disparity=case.min_disparity)
+    stereo.sgbm(*args, min_disparity=case.min_disparity, **masks)
     runs = []
     for _ in range(repeats):
         timer.own.clear()
         t0 = timer.clock()
         stereo.birchfield(*args, min_disparity=case.min_disparity, **options)
         t1 = timer.clock()
-        stereo.sgbm(*args, min_disparity=case.min_disparity)
+        stereo.sgbm(*args, min_disparity=case.min_disparity, **masks)
         t2 = timer.clock()
         runs.append(dict(timer.own, **{TOTAL: t1 - t0, SGBM: t2 - t1}))
     return runs
@@ -179,7 +199,7 @@ def run_worker(src: str | None, args) -> dict:
         env["PYTHONPATH"] = os.pathsep.join([str(Path(src).resolve()),
                                              env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
     cmd = [sys.executable, __file__, "--worker", "--repeats", str(args.repeats),
-           "--options", args.options, "--clock", args.clock]
+           "--options", args.options, "--clock", args.clock] + (["--masked"] if args.masked else [])
     for name in args.case or ():
         cmd += ["--case", name]
     done = subprocess.run(cmd, env=env, capture_output=True, text=True)
@@ -260,6 +280,8 @@ def main(argv: list[str] | None = None) -> int:
                              "compare (default: this checkout)")
     parser.add_argument("--options", default="{}", help="JSON of birchfield() options")
     parser.add_argument("--case", action="append", help="only this pair (repeatable)")
+    parser.add_argument("--masked", action="store_true",
+                        help="pass rectification-like validity masks (black corners)")
     parser.add_argument("--clock", choices=("cpu", "wall"), default="cpu",
                         help="process CPU time (default: steadier on a shared machine, and "
                              "the same as wall time for one thread) or wall time")
@@ -273,7 +295,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.clock == "wall":
         StageTimer.clock = staticmethod(time.perf_counter)
     if args.worker:
-        print(json.dumps(worker(args.repeats, options, args.case)))
+        print(json.dumps(worker(args.repeats, options, args.case, args.masked)))
         return 0
     if args.cprofile:
         profile_cones(options, args.repeats)
@@ -292,7 +314,8 @@ def main(argv: list[str] | None = None) -> int:
              f"Command: `.venv/bin/python bench/stereo_stages.py "
              f"{' '.join(argv if argv is not None else sys.argv[1:])}`  \n"
              f"Date: {time.strftime('%Y-%m-%d')}; {os.cpu_count()} cores, load average "
-             f"{min(load):.1f}-{max(load):.1f} during the run; options {args.options}. "
+             f"{min(load):.1f}-{max(load):.1f} during the run; options {args.options}"
+             f"{', rectification-like masks' if args.masked else ''}. "
              f"Medians of {args.repeats} x {args.rounds} runs per variant, in milliseconds "
              f"of {'process CPU' if args.clock == 'cpu' else 'wall'} time.\n",
              "## Per pair\n\n" + summary_table(merged)]

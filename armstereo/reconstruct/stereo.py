@@ -576,15 +576,36 @@ def _reject_invalid_partners(disp: np.ndarray, rmask: np.ndarray,
         with np.errstate(invalid="ignore"):
             band[np.rint(np.arange(band.shape[1], dtype=np.float32) - band) < 0] = np.nan
         return
-    xr = np.rint(np.arange(W, dtype=np.float64) - disp)  # NaN stays NaN
+    # x - d in float64 (exact), rounded; NaN stays NaN and compares False
+    xr = np.subtract(np.arange(W, dtype=np.float64), disp)
+    np.rint(xr, out=xr)
+    runs = _single_runs(rmask)
     with np.errstate(invalid="ignore"):
-        inside = (xr >= 0) & (xr < W)  # False on NaN
-    at = np.where(inside, xr, 0).astype(np.int32)
-    at += np.arange(0, H * W, W, dtype=np.int32)[:, None]  # flat index of the partner
-    off = ~rmask.ravel().take(at)
-    off &= inside
-    off |= ~inside & np.isfinite(disp)
-    disp[off] = np.nan
+        if runs is not None:  # a rectification's mask: one run [a, b) of valid pixels per row
+            ok = xr >= runs[0]
+            ok &= xr < runs[1]
+        else:
+            ok = xr >= 0
+            ok &= xr < W
+            np.copyto(xr, 0, where=~ok)
+            at = xr.astype(np.int32)
+            at += np.arange(0, H * W, W, dtype=np.int32)[:, None]  # flat index of the partner
+            ok &= rmask.ravel().take(at)
+    bad = np.isfinite(disp)
+    bad &= ~ok
+    disp[bad] = np.nan
+
+
+def _single_runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(a, b)``, (H, 1) int columns, when each row's True pixels are the one run
+    ``a <= x < b`` (``a = W, b = 0`` on an empty row); None if some row has more runs."""
+    H, W = mask.shape
+    count = np.count_nonzero(mask, axis=1)
+    a = np.argmax(mask, axis=1)
+    b = W - np.argmax(mask[:, ::-1], axis=1)
+    if not np.all((count == b - a) | (count == 0)):
+        return None
+    return np.where(count > 0, a, W)[:, None], np.where(count > 0, b, 0)[:, None]
 
 
 def _squeeze(img: np.ndarray) -> np.ndarray:
