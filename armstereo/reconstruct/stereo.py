@@ -345,9 +345,11 @@ def _gradient_step(left: np.ndarray, right: np.ndarray, idx: np.ndarray,
     operations, a few percent of the matching time.
     """
     H, W = idx.shape
-    # central differences (the 1x3 Sobel kernel, halved)
-    gl = cv2.Sobel(left, cv2.CV_32F, 1, 0, ksize=1, scale=0.5)
-    g = cv2.Sobel(right, cv2.CV_32F, 1, 0, ksize=1, scale=0.5)
+    # g = (gl + gr) / 2 from central differences (the 1x3 Sobel kernel) scaled by 1/4: every
+    # value is a small integer times 1/4, so the arithmetic is exact in any order
+    quarter = 0.25
+    gl = cv2.Sobel(left, cv2.CV_32F, 1, 0, ksize=1, scale=quarter)
+    g = cv2.Sobel(right, cv2.CV_32F, 1, 0, ksize=1, scale=quarter)
     # partner column minus one, xr - 1 = x - dmin - 1 - idx: usable where 0 <= xr - 1 <= W - 3
     at = np.arange(-dmin - 1, W - dmin - 1, dtype=np.int32) - idx
     off = np.greater_equal(at.view(np.uint32), np.uint32(W - 2))  # one test for both ends
@@ -356,18 +358,17 @@ def _gradient_step(left: np.ndarray, right: np.ndarray, idx: np.ndarray,
     # where off, any pixel will do (its g is zeroed): "clip" keeps the index in the image
     g = g.ravel().take(at, mode="clip")
     g += gl
-    g *= np.float32(0.5)
     g[off] = 0
-    e = cv2.subtract(left, right.ravel().take(at, mode="clip"), dtype=cv2.CV_32F)
-    e *= g
+    # -e = R(x - d) - L(x), so that the window sum below is -sum(g e) (negation is exact)
+    minus_e = cv2.subtract(right.ravel().take(at, mode="clip"), left, dtype=cv2.CV_32F)
+    minus_e *= g
     g *= g
     win = (SUBPIXEL_WINDOW, SUBPIXEL_WINDOW)
     sgg = cv2.boxFilter(g, -1, win, dst=g, normalize=False)
-    step = cv2.boxFilter(e, -1, win, dst=e, normalize=False)
+    step = cv2.boxFilter(minus_e, -1, win, dst=minus_e, normalize=False)
     with np.errstate(invalid="ignore", divide="ignore"):
         np.divide(step, sgg, out=step)
-    np.negative(step, out=step)
-    step[~(sgg > SUBPIXEL_MIN_GRADIENT)] = 0
+    np.copyto(step, 0, where=sgg <= SUBPIXEL_MIN_GRADIENT)  # no gradient: no step
     return np.clip(step, -SUBPIXEL_MAX_SHIFT, SUBPIXEL_MAX_SHIFT, out=step)
 
 
