@@ -351,10 +351,10 @@ def _gradient_step(left: np.ndarray, right: np.ndarray, idx: np.ndarray,
     gl = cv2.Sobel(left, cv2.CV_32F, 1, 0, ksize=1, scale=quarter)
     g = cv2.Sobel(right, cv2.CV_32F, 1, 0, ksize=1, scale=quarter)
     # partner column minus one, xr - 1 = x - dmin - 1 - idx: usable where 0 <= xr - 1 <= W - 3
-    at = np.arange(-dmin - 1, W - dmin - 1, dtype=np.int32) - idx
-    off = np.greater_equal(at.view(np.uint32), np.uint32(W - 2))  # one test for both ends
+    at = np.arange(-dmin - 1, W - dmin - 1, dtype=np.intp) - idx  # intp: what take() uses
+    off = np.greater_equal(at.view(np.uintp), np.uintp(W - 2))  # one test for both ends
     off |= idx < 0
-    at += np.arange(1, H * W, W, dtype=np.int32)[:, None]  # flat index of the partner
+    at += np.arange(1, H * W, W, dtype=np.intp)[:, None]  # flat index of the partner
     # where off, any pixel will do (its g is zeroed): "clip" keeps the index in the image
     g = g.ravel().take(at, mode="clip")
     g += gl
@@ -428,7 +428,7 @@ def _unsupported(disp: np.ndarray, flat: np.ndarray, tolerance: float) -> np.nda
     finite = np.isfinite(disp)
     query = flat & finite  # the only pixels that can be kept
     out = flat & ~finite
-    at = np.flatnonzero(query).astype(np.int32)
+    at = np.flatnonzero(query)  # intp: take() converts any other index type first
     if at.size == 0:
         return out
     # One running maximum along each row finds, for every pixel, the nearest pixel at or left
@@ -589,8 +589,8 @@ def _reject_invalid_partners(disp: np.ndarray, rmask: np.ndarray,
             ok = xr >= 0
             ok &= xr < W
             np.copyto(xr, 0, where=~ok)
-            at = xr.astype(np.int32)
-            at += np.arange(0, H * W, W, dtype=np.int32)[:, None]  # flat index of the partner
+            at = xr.astype(np.intp)
+            at += np.arange(0, H * W, W, dtype=np.intp)[:, None]  # flat index of the partner
             ok &= rmask.ravel().take(at)
     bad = np.isfinite(disp)
     bad &= ~ok
