@@ -403,15 +403,15 @@ def _hidden_by_nearer(disp: np.ndarray, margin: float) -> np.ndarray:
 
     ``x - d(x)`` is the pixel's right-image position; it is hidden when that lies at least
     ``margin`` pixels right of the leftmost right-image position of the pixels to its right
-    (``margin = 1`` tolerates the one-pixel ties of slanted surfaces). NaN takes no part.
+    (``margin = 1`` tolerates the one-pixel ties of slanted surfaces). NaN takes no part
+    (and is not marked).
     """
     H, W = disp.shape
-    xr = np.arange(W, dtype=np.float32) - disp
-    xr[np.isnan(xr)] = np.inf
-    lowest = np.minimum.accumulate(xr[:, ::-1], axis=1)[:, ::-1]  # min over x' >= x
-    hidden = np.empty((H, W), np.bool_)
-    np.greater_equal(xr[:, :-1], lowest[:, 1:] + margin, out=hidden[:, :-1])
-    hidden[:, -1] = xr[:, -1] >= np.float32(np.inf) + margin  # nothing right of the last
+    xr = np.arange(W, dtype=np.float32) - disp  # NaN where no disparity
+    lowest = np.fmin.accumulate(xr[:, ::-1], axis=1)[:, ::-1]  # min over x' >= x; fmin skips NaN
+    hidden = np.zeros((H, W), np.bool_)  # the last column: nothing right of it
+    with np.errstate(invalid="ignore"):  # NaN compares False
+        np.greater_equal(xr[:, :-1], lowest[:, 1:] + margin, out=hidden[:, :-1])
     return hidden
 
 
