@@ -9,13 +9,16 @@ runs interleaved with ``birchfield()`` in the same process, one thread each
 (``numba.set_num_threads``, ``cv2.setNumThreads``), on the pairs of bench/stereo.py (the four
 Middlebury pairs and its two synthetic scenes).
 
-``--variant NAME=SRC`` measures the ``armstereo`` package of the source tree SRC (e.g. an
-unpacked ``git archive main``) as NAME; variants run in turn in fresh processes, ``--rounds``
-times, so that each sees the same machine load. ``--cprofile`` prints cProfile's top
-functions of the default call on cones instead.
+Times are process CPU time by default (``--clock wall`` for wall time): with one thread
+they measure the same work, and CPU time moves far less when the machine is shared.
+``--masked`` passes validity masks like a rectification's (the pose-based pipeline always
+has them; a few stages take another path then). ``--variant NAME=SRC`` measures the
+``armstereo`` package of the source tree SRC (e.g. an unpacked ``git archive main``) as NAME;
+variants run in turn in fresh processes, ``--rounds`` times, so that each sees the same
+machine load. ``--cprofile`` prints cProfile's top functions of the call on cones instead.
 
-Run: ``.venv/bin/python bench/stereo_stages.py [--repeats 9] [--rounds 2]
-[--variant before=DIR --variant after=.] [--options '{"lr_check": true}']
+Run: ``.venv/bin/python bench/stereo_stages.py [--repeats 9] [--rounds 2] [--masked]
+[--variant before=DIR --variant after=.] [--options '{"lr_check": true}'] [--case cones]
 [--out bench/results/stereo_stages.md]``.
 """
 
