@@ -208,8 +208,10 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
     aggregated = (rx, ry) != (0, 0) or slant_penalty is not None
     gl, gr = _grey(left), _grey(right)
     grey_l, grey_r = gl, gr  # the photo-consistency check reads the unfiltered images
-    flat = _textureless(gl, texture_threshold) if texture_threshold > 0 else None
-    textured_l, textured_r = _rewarded(gl, reward_texture), _rewarded(gr, reward_texture)
+    # one texture map of the left image serves both thresholds
+    strength = _texture_strength(gl) if texture_threshold > 0 or reward_texture > 0 else None
+    flat = strength < texture_threshold if texture_threshold > 0 else None
+    textured_l = _rewarded(strength, reward_texture)
     if prefilter not in PREFILTER_MODES:
         raise StereoError(f"prefilter={prefilter!r} is not one of {', '.join(PREFILTER_MODES)}")
     if prefilter == "highpass":
@@ -230,28 +232,29 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
                       slant_penalty * units)), aggregated=aggregated,
                   paper_postprocess=postprocess == "paper")
     idx, state = _match(ml, mr, lmask, rmask, textured=textured_l, **params)
+    dense = idx.astype(np.float32)  # _match has set -1 on every pixel it rejects
     if subpixel == "fast":
-        offset = _gradient_step(gl, gr, idx, min_disparity)
-    else:
-        offset = np.zeros(idx.shape, np.float32)
-    dense = idx.astype(np.float32) + offset
+        dense += _gradient_step(gl, gr, idx, min_disparity)
     if postprocess == "median":
-        dense = np.where(idx >= 0, cv2.medianBlur(dense, MEDIAN_SIZE), dense)
-    reject = (idx < 0) | (state >= _dp.BORDER)
+        dense = _median(dense, idx)
+    reject = idx < 0
+    masked = np.where(reject, np.float32(np.nan), dense)  # NaN where rejected so far
     if flat is not None:
-        reject |= _unsupported(np.where(reject, np.nan, dense), flat, FLAT_TOLERANCE)
+        _reject(masked, reject, _unsupported(masked, flat, FLAT_TOLERANCE))
     if occlusions == "nan":
-        reject |= _hidden_by_nearer(np.where(reject, np.nan, dense), OCCLUSION_MARGIN)
+        _reject(masked, reject, _hidden_by_nearer(masked, OCCLUSION_MARGIN))
     if lr_check:
-        textured_rm = None if textured_r is None else textured_r[:, ::-1]  # None: reward all
+        textured_r = _rewarded(_texture_strength(grey_r), reward_texture)
         idx_r, state_r = _match(mr[:, ::-1], ml[:, ::-1], rmask[:, ::-1], lmask[:, ::-1],
-                                   textured=textured_rm, **params)
+                                textured=None if textured_r is None else textured_r[:, ::-1],
+                                **params)
         # mirrored, swapped pair: its "left" is the mirrored right image
         idx_r = np.where(state_r >= _dp.BORDER, -1, idx_r)
         idx_r = np.ascontiguousarray(idx_r[:, ::-1])
-        reject |= left_right_mismatch(np.where(reject, -1, idx), idx_r, min_disparity, 1)
-    disp = dense + np.float32(min_disparity)
-    disp[reject] = np.nan
+        _reject(masked, reject, left_right_mismatch(np.where(reject, -1, idx), idx_r,
+                                                    min_disparity, 1))
+    disp = masked
+    disp += np.float32(min_disparity)
     if photo_check > 0:  # before the speckle filter, which removes what it leaves isolated
         disp[_photo_inconsistent(grey_l, grey_r, disp, photo_check)] = np.nan
     if subpixel in ("gradient", "parabola"):
@@ -267,8 +270,22 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
     disp = _clip_to_window(disp, min_disparity, max_disparity)
     # The median and the sub-pixel steps move disparities after matching: one may now point
     # into the right image's fill or past its edge, which the programme itself never matches.
-    _reject_invalid_partners(disp, rmask)
+    _reject_invalid_partners(disp, rmask, min_disparity + max_disparity)
     return disp
+
+
+def _reject(masked: np.ndarray, reject: np.ndarray, new: np.ndarray) -> None:
+    """Add ``new`` to the (H, W) bool ``reject`` and set NaN there in ``masked`` (in place)."""
+    reject |= new
+    masked[new] = np.nan
+
+
+def _median(dense: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """MEDIAN_SIZE median of the float32 map on matched pixels (``idx >= 0``); the others keep
+    their values."""
+    out = cv2.medianBlur(dense, MEDIAN_SIZE)
+    np.copyto(out, dense, where=idx < 0)
+    return out
 
 
 def _photo_inconsistent(left: np.ndarray, right: np.ndarray, disp: np.ndarray,
@@ -328,21 +345,31 @@ def _gradient_step(left: np.ndarray, right: np.ndarray, idx: np.ndarray,
     operations, a few percent of the matching time.
     """
     H, W = idx.shape
-    # central differences (the 1x3 Sobel kernel, halved)
-    gl = cv2.Sobel(left, cv2.CV_32F, 1, 0, ksize=1, scale=0.5)
-    gr = cv2.Sobel(right, cv2.CV_32F, 1, 0, ksize=1, scale=0.5)
-    xr = np.arange(W, dtype=np.int32)[None, :] - (idx + np.int32(dmin))
-    ok = (idx >= 0) & (xr >= 1) & (xr <= W - 2)
-    at = np.where(ok, xr, 0) + np.arange(0, H * W, W, dtype=np.int32)[:, None]  # flat index
-    half = np.float32(0.5)
-    g = np.where(ok, half * (gl + gr.ravel().take(at)), np.float32(0))
-    e = left.astype(np.float32) - right.ravel().take(at)
+    # g = (gl + gr) / 2 from central differences (the 1x3 Sobel kernel) scaled by 1/4: every
+    # value is a small integer times 1/4, so the arithmetic is exact in any order
+    quarter = 0.25
+    gl = cv2.Sobel(left, cv2.CV_32F, 1, 0, ksize=1, scale=quarter)
+    g = cv2.Sobel(right, cv2.CV_32F, 1, 0, ksize=1, scale=quarter)
+    # partner column minus one, xr - 1 = x - dmin - 1 - idx: usable where 0 <= xr - 1 <= W - 3
+    at = np.arange(-dmin - 1, W - dmin - 1, dtype=np.intp) - idx  # intp: what take() uses
+    off = np.greater_equal(at.view(np.uintp), np.uintp(W - 2))  # one test for both ends
+    off |= idx < 0
+    at += np.arange(1, H * W, W, dtype=np.intp)[:, None]  # flat index of the partner
+    # where off, any pixel will do (its g is zeroed): "clip" keeps the index in the image
+    g = g.ravel().take(at, mode="clip")
+    g += gl
+    g[off] = 0
+    # -e = R(x - d) - L(x), so that the window sum below is -sum(g e) (negation is exact)
+    minus_e = cv2.subtract(right.ravel().take(at, mode="clip"), left, dtype=cv2.CV_32F)
+    minus_e *= g
+    g *= g
     win = (SUBPIXEL_WINDOW, SUBPIXEL_WINDOW)
-    sgg = cv2.boxFilter(g * g, -1, win, normalize=False)
-    sge = cv2.boxFilter(g * e, -1, win, normalize=False)
+    sgg = cv2.boxFilter(g, -1, win, dst=g, normalize=False)
+    step = cv2.boxFilter(minus_e, -1, win, dst=minus_e, normalize=False)
     with np.errstate(invalid="ignore", divide="ignore"):
-        step = np.where(sgg > SUBPIXEL_MIN_GRADIENT, -sge / sgg, np.float32(0))
-    return np.clip(step, -SUBPIXEL_MAX_SHIFT, SUBPIXEL_MAX_SHIFT).astype(np.float32)
+        np.divide(step, sgg, out=step)
+    np.copyto(step, 0, where=sgg <= SUBPIXEL_MIN_GRADIENT)  # no gradient: no step
+    return np.clip(step, -SUBPIXEL_MAX_SHIFT, SUBPIXEL_MAX_SHIFT, out=step)
 
 
 def _postprocess_mode(postprocess: bool | str) -> str:
@@ -353,11 +380,12 @@ def _postprocess_mode(postprocess: bool | str) -> str:
     return postprocess
 
 
-def _rewarded(grey: np.ndarray, threshold: float) -> np.ndarray | None:
-    """Left pixels whose match earns the reward: those with texture (None = all)."""
+def _rewarded(strength: np.ndarray | None, threshold: float) -> np.ndarray | None:
+    """Pixels whose match earns the reward: those with texture (None = all), from
+    :func:`_texture_strength`."""
     if threshold <= 0:
         return None
-    return ~_textureless(np.ascontiguousarray(grey), threshold)
+    return ~(strength < threshold)
 
 
 def _window_radii(cost_window) -> tuple[int, int]:
@@ -375,14 +403,16 @@ def _hidden_by_nearer(disp: np.ndarray, margin: float) -> np.ndarray:
 
     ``x - d(x)`` is the pixel's right-image position; it is hidden when that lies at least
     ``margin`` pixels right of the leftmost right-image position of the pixels to its right
-    (``margin = 1`` tolerates the one-pixel ties of slanted surfaces). NaN takes no part.
+    (``margin = 1`` tolerates the one-pixel ties of slanted surfaces). NaN takes no part
+    (and is not marked).
     """
     H, W = disp.shape
-    xr = np.arange(W, dtype=np.float32)[None, :] - disp
-    xr = np.where(np.isnan(xr), np.float32(np.inf), xr)
-    lowest = np.minimum.accumulate(xr[:, ::-1], axis=1)[:, ::-1]  # min over x' >= x
-    right_of = np.concatenate([lowest[:, 1:], np.full((H, 1), np.inf, np.float32)], axis=1)
-    return xr >= right_of + margin
+    xr = np.arange(W, dtype=np.float32) - disp  # NaN where no disparity
+    lowest = np.fmin.accumulate(xr[:, ::-1], axis=1)[:, ::-1]  # min over x' >= x; fmin skips NaN
+    hidden = np.zeros((H, W), np.bool_)  # the last column: nothing right of it
+    with np.errstate(invalid="ignore"):  # NaN compares False
+        np.greater_equal(xr[:, :-1], lowest[:, 1:] + margin, out=hidden[:, :-1])
+    return hidden
 
 
 def _unsupported(disp: np.ndarray, flat: np.ndarray, tolerance: float) -> np.ndarray:
@@ -394,52 +424,67 @@ def _unsupported(disp: np.ndarray, flat: np.ndarray, tolerance: float) -> np.nda
     ``tolerance``): a plain wall between two edges of the same surface, not a gap or a
     background that the programme had to invent a disparity for.
     """
-    # transposed, so that the running maxima/minima along a row run down contiguous columns
-    dT = np.ascontiguousarray(disp.T)
-    W, H = dT.shape
-    finite = np.isfinite(dT)
-    anchor = ~np.ascontiguousarray(flat.T) & finite
-    cols = np.broadcast_to(np.arange(W, dtype=np.int32)[:, None], (W, H))
-    none_l, none_r = np.int32(-1), np.int32(W)
-    # nearest anchor on each side, and where the run of finite pixels ends on each side
-    left = np.maximum.accumulate(np.where(anchor, cols, none_l), axis=0)
-    right = np.minimum.accumulate(np.where(anchor, cols, none_r)[::-1], axis=0)[::-1]
-    start = np.maximum.accumulate(np.where(finite, none_l, cols), axis=0)
-    stop = np.minimum.accumulate(np.where(finite, none_r, cols)[::-1], axis=0)[::-1]
-    has_left, has_right = left > start, right < stop
-    left = np.where(has_left, left, cols)
-    right = np.where(has_right, right, cols)
-    flat_d, lane = dT.ravel(), np.arange(H, dtype=np.int32)[None, :]
+    H, W = disp.shape
+    finite = np.isfinite(disp)
+    query = flat & finite  # the only pixels that can be kept
+    out = flat & ~finite
+    at = np.flatnonzero(query)  # intp: take() converts any other index type first
+    if at.size == 0:
+        return out
+    # One running maximum along each row finds, for every pixel, the nearest pixel at or left
+    # of it that is an anchor (textured, with a disparity) or a break (no disparity), coded
+    # 2 i + 1 or 2 i by its flat index i (none: a break just before the row). Likewise to the
+    # right with a running minimum, codes 2 i or 2 i + 1 (none: a break just after the row).
+    # code >> 1 is the flat index, the low bit tells which of the two it is.
+    twice = np.arange(0, 2 * W, 2, dtype=np.int32)
+    row = np.arange(0, 2 * H * W, 2 * W, dtype=np.int32)[:, None]
+    event = ~query
+    anchor = ~flat & finite
+    code = (twice + 2 + anchor) * event + (row - 2)
+    lq = np.maximum.accumulate(code, axis=1, out=code).ravel().take(at)
+    code = (twice - anchor - 2 * W) * event + (row + 2 * W + 1)
+    rq = np.minimum.accumulate(code[:, ::-1], axis=1)[:, ::-1].ravel().take(at)
+    has_left = (lq & 1).astype(np.bool_)
+    has_right = ~(rq & 1).astype(np.bool_)
+    lq >>= 1  # the anchor where it exists, else the break where the run of disparities starts
+    rq >>= 1  # ... and where it stops
+    left = np.where(has_left, lq, at)
+    right = np.where(has_right, rq, at)
+    flat_d = disp.ravel()
     nan = np.float32(np.nan)
-    d_left = np.where(has_left, flat_d.take(left * np.int32(H) + lane), nan)
-    d_right = np.where(has_right, flat_d.take(right * np.int32(H) + lane), nan)
+    d_left = np.where(has_left, flat_d.take(left), nan)
+    d_right = np.where(has_right, flat_d.take(right), nan)
     # a pixel squeezed between the run's end and an anchor within a texture window of it
     # needs that anchor only
     near = 2 * TEXTURE_WINDOW
-    d_left = np.where(~has_left & (right - start <= near), d_right, d_left)
-    d_right = np.where(~has_right & (stop - left <= near), d_left, d_right)
+    d_left = np.where(~has_left & (right - lq <= near), d_right, d_left)
+    d_right = np.where(~has_right & (rq - left <= near), d_left, d_right)
+    d = flat_d.take(at)
     with np.errstate(invalid="ignore"):
         span = tolerance + FLAT_SLOPE * (right - left)  # a slanted surface may change
         ok = (np.abs(d_left - d_right) <= span) & (
-            dT >= np.fmin(d_left, d_right) - tolerance) & (
-            dT <= np.fmax(d_left, d_right) + tolerance)
-    ok = ok.T
-    return flat & ~ok
+            d >= np.fmin(d_left, d_right) - tolerance) & (
+            d <= np.fmax(d_left, d_right) + tolerance)
+    out.ravel()[at] = ~ok
+    return out
 
 
-def _textureless(grey: np.ndarray, threshold: float) -> np.ndarray:
-    """Pixels whose mean absolute horizontal gradient over the texture window is below
-    ``threshold`` grey levels per pixel (Sobel / 8 = central difference, smoothed)."""
-    gx = np.abs(cv2.Sobel(grey, cv2.CV_32F, 1, 0, ksize=3)) * np.float32(1 / 8)
-    return cv2.blur(gx, (TEXTURE_WINDOW, TEXTURE_WINDOW)) < threshold
+def _texture_strength(grey: np.ndarray) -> np.ndarray:
+    """Mean absolute horizontal gradient over the TEXTURE_WINDOW square, grey levels per
+    pixel (Sobel / 8 = central difference, smoothed): below a threshold a pixel is flat."""
+    # scale 1/8 inside the filter: exact, as every Sobel sum is an integer
+    gx = cv2.Sobel(grey, cv2.CV_32F, 1, 0, ksize=3, scale=1 / 8)
+    np.abs(gx, out=gx)
+    return cv2.blur(gx, (TEXTURE_WINDOW, TEXTURE_WINDOW), dst=gx)
 
 
 def _remove_speckles(disp: np.ndarray, size: int, max_diff: float) -> None:
     """NaN on small regions of similar disparity (in place; OpenCV's filterSpeckles on a
     1/16-pixel int16 copy)."""
-    ok = np.isfinite(disp)
-    fixed = np.full(disp.shape, -1, np.int16)
-    fixed[ok] = np.rint(disp[ok] * 16).astype(np.int16)
+    fixed = disp * np.float32(16)
+    np.rint(fixed, out=fixed)
+    fixed[~np.isfinite(disp)] = -1
+    fixed = fixed.astype(np.int16)
     cv2.filterSpeckles(fixed, -1, int(size), int(round(max_diff * 16)))
     disp[fixed < 0] = np.nan
 
@@ -521,19 +566,47 @@ def sgbm(left: np.ndarray, right: np.ndarray, max_disparity: int, *, min_dispari
     return disp
 
 
-def _reject_invalid_partners(disp: np.ndarray, rmask: np.ndarray) -> None:
+def _reject_invalid_partners(disp: np.ndarray, rmask: np.ndarray,
+                             largest: float | None = None) -> None:
     """NaN where the matched right pixel ``x - d`` (nearest pixel) is outside the right image
-    or its validity mask (in place)."""
+    or its validity mask (in place). ``largest``: no disparity exceeds it (None: unknown)."""
     H, W = disp.shape
     if rmask.all():  # only the left edge can be crossed (d >= 0); NaN compares False
+        # x - d < -1/2 needs x < d: only the columns left of the largest disparity
+        band = disp if largest is None else disp[:, :max(0, min(W, int(np.ceil(largest))))]
         with np.errstate(invalid="ignore"):
-            disp[np.rint(np.arange(W, dtype=np.float32) - disp) < 0] = np.nan
+            band[np.rint(np.arange(band.shape[1], dtype=np.float32) - band) < 0] = np.nan
         return
-    ys, xs = np.nonzero(np.isfinite(disp))
-    xr = np.rint(xs - disp[ys, xs]).astype(np.int64)
-    off = (xr < 0) | (xr >= W)
-    off[~off] = ~rmask[ys[~off], xr[~off]]
-    disp[ys[off], xs[off]] = np.nan
+    # x - d in float64 (exact), rounded; NaN stays NaN and compares False
+    xr = np.subtract(np.arange(W, dtype=np.float64), disp)
+    np.rint(xr, out=xr)
+    runs = _single_runs(rmask)
+    with np.errstate(invalid="ignore"):
+        if runs is not None:  # a rectification's mask: one run [a, b) of valid pixels per row
+            ok = xr >= runs[0]
+            ok &= xr < runs[1]
+        else:
+            ok = xr >= 0
+            ok &= xr < W
+            np.copyto(xr, 0, where=~ok)
+            at = xr.astype(np.intp)
+            at += np.arange(0, H * W, W, dtype=np.intp)[:, None]  # flat index of the partner
+            ok &= rmask.ravel().take(at)
+    bad = np.isfinite(disp)
+    bad &= ~ok
+    disp[bad] = np.nan
+
+
+def _single_runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(a, b)``, (H, 1) int columns, when each row's True pixels are the one run
+    ``a <= x < b`` (``a = W, b = 0`` on an empty row); None if some row has more runs."""
+    H, W = mask.shape
+    count = np.count_nonzero(mask, axis=1)
+    a = np.argmax(mask, axis=1)
+    b = W - np.argmax(mask[:, ::-1], axis=1)
+    if not np.all((count == b - a) | (count == 0)):
+        return None
+    return np.where(count > 0, a, W)[:, None], np.where(count > 0, b, 0)[:, None]
 
 
 def _squeeze(img: np.ndarray) -> np.ndarray:

@@ -169,6 +169,37 @@ def test_hidden_by_nearer_marks_the_strip_a_nearer_pixel_covers():
     np.testing.assert_array_equal(hidden, [0, 0, 0, 1, 1, 0, 0, 0])
 
 
+def _partners_outside(disp, rmask):
+    """Oracle of the partner check: pixel by pixel, the nearest right pixel of x - d."""
+    H, W = disp.shape
+    bad = np.zeros((H, W), bool)
+    for y, x in zip(*np.nonzero(np.isfinite(disp)), strict=True):
+        xr = int(np.rint(np.float64(x) - np.float64(disp[y, x])))
+        bad[y, x] = not (0 <= xr < W and rmask[y, xr])
+    return bad
+
+
+def test_partners_in_a_right_masks_fill_are_rejected_whatever_the_masks_shape():
+    """One run of valid pixels per row (a rectification's mask: compared with the run's
+    ends), rows with a hole or no valid pixel (the general gather), or no mask at all."""
+    rng = np.random.default_rng(3)
+    H, W, top = 14, 40, 12.0
+    disp = rng.uniform(0, top, (H, W)).astype(np.float32)
+    disp[rng.random((H, W)) < 0.2] = np.nan
+    disp[0, 20:30] = np.arange(10) + 0.5  # exact halves round to even
+    xs = np.arange(W)
+    runs = (xs >= rng.integers(0, 10, H)[:, None]) & (xs < rng.integers(25, W + 1, H)[:, None])
+    runs[3] = False  # an empty row is still one run (of nothing)
+    holes = runs.copy()
+    holes[::2, 15:18] = False
+    assert stereo._single_runs(runs) is not None and stereo._single_runs(holes) is None
+    for rmask in (runs, holes, np.ones((H, W), bool)):
+        out = disp.copy()
+        stereo._reject_invalid_partners(out, rmask, top)
+        expected = np.where(_partners_outside(disp, rmask), np.float32(np.nan), disp)
+        np.testing.assert_array_equal(out, expected)
+
+
 def test_the_papers_matcher_is_still_available():
     left, right = box_pair(3, 11, (50, 100, 20, 60))
     disp = birchfield(left, right, 15, **PAPER_OPTIONS)
