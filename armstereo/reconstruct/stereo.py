@@ -90,6 +90,7 @@ PREFILTER_SIGMA = 8.0  # px: slower brightness changes than this are removed
 PREFILTER_GAIN = 2.0  # contrast of what is left (the penalties are in grey levels)
 SPECKLE_SIZE = 100  # pixels
 SPECKLE_RANGE = 2.0  # pixels of disparity
+CONSENSUS_LEVELS = 254  # distinct disparity codes of the consensus median (uint8, 0 = NaN)
 MEDIAN_SIZE = 5
 OCCLUSION_MARGIN = 1.0  # pixels: see _hidden_by_nearer
 FLAT_TOLERANCE = 1.0  # pixels: see _unsupported
@@ -126,7 +127,8 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
                reward_texture: float = REWARD_TEXTURE, prefilter: str = "none",
                prefilter_sigma: float = PREFILTER_SIGMA,
                prefilter_gain: float = PREFILTER_GAIN,
-               photo_check: float = 0.0) -> np.ndarray:
+               photo_check: float = 0.0, column_support: bool = False,
+               consensus_size: int = 0) -> np.ndarray:
     """Birchfield-Tomasi pixel-to-pixel stereo (ICCV'98), made robust for real photographs.
 
     The algorithm: the sampling-insensitive symmetric dissimilarity, one dynamic programme per
@@ -201,6 +203,8 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
     if not (texture_threshold >= 0 and speckle_size >= 0 and speckle_range >= 0):  # NaN too
         raise StereoError(f"texture_threshold ({texture_threshold}), speckle_size "
                           f"({speckle_size}) and speckle_range ({speckle_range}) must be >= 0")
+    if consensus_size != 0 and (consensus_size < 3 or consensus_size % 2 == 0):
+        raise StereoError(f"consensus_size must be 0 (off) or odd and >= 3, got {consensus_size}")
     if not photo_check >= 0:
         raise StereoError(f"photo_check must be >= 0 grey levels, got {photo_check}")
     if color != "gray" or search != "exact":  # only the paper's single-pixel kernels
@@ -239,7 +243,7 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
         dense = np.where(idx >= 0, cv2.medianBlur(dense, MEDIAN_SIZE), dense)
     reject = (idx < 0) | (state >= _dp.BORDER)
     if flat is not None:
-        reject |= _unsupported(np.where(reject, np.nan, dense), flat, FLAT_TOLERANCE)
+        reject |= _flat_rejected(np.where(reject, np.nan, dense), flat, column_support)
     if occlusions == "nan":
         reject |= _hidden_by_nearer(np.where(reject, np.nan, dense), OCCLUSION_MARGIN)
     if lr_check:
@@ -262,6 +266,8 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
         else:
             disp = refine_parabola(gl.astype(np.float32), gr.astype(np.float32), whole,
                                    subpixel_radius)
+    if consensus_size > 0:
+        _replace_outliers(disp, consensus_size, min_disparity, max_disparity)
     if speckle_size > 0:
         _remove_speckles(disp, speckle_size, speckle_range)
     disp = _clip_to_window(disp, min_disparity, max_disparity)
@@ -385,6 +391,15 @@ def _hidden_by_nearer(disp: np.ndarray, margin: float) -> np.ndarray:
     return xr >= right_of + margin
 
 
+def _flat_rejected(disp: np.ndarray, flat: np.ndarray, column_support: bool) -> np.ndarray:
+    """Flat pixels that keep no disparity: unsupported along their row and, with
+    ``column_support``, also along their column (:func:`_unsupported` on the transpose)."""
+    rejected = _unsupported(disp, flat, FLAT_TOLERANCE)
+    if column_support:
+        rejected &= _unsupported(disp.T, flat.T, FLAT_TOLERANCE).T
+    return rejected
+
+
 def _unsupported(disp: np.ndarray, flat: np.ndarray, tolerance: float) -> np.ndarray:
     """Flat pixels whose disparity their row's textured surroundings do not confirm.
 
@@ -432,6 +447,26 @@ def _textureless(grey: np.ndarray, threshold: float) -> np.ndarray:
     ``threshold`` grey levels per pixel (Sobel / 8 = central difference, smoothed)."""
     gx = np.abs(cv2.Sobel(grey, cv2.CV_32F, 1, 0, ksize=3)) * np.float32(1 / 8)
     return cv2.blur(gx, (TEXTURE_WINDOW, TEXTURE_WINDOW)) < threshold
+
+
+def _replace_outliers(disp: np.ndarray, size: int, dmin: int, dmax: int) -> None:
+    """Answered pixels more than SPECKLE_RANGE from the median answer of the ``size`` square
+    around them take that median (in place): a streak a few rows high, or a blob, that
+    disagrees with the surface around it is replaced by what the surface says.
+
+    The median runs on a uint8 copy (OpenCV's any-size median): whole disparities above
+    ``dmin``, or pairs of them where the window holds more than CONSENSUS_LEVELS values;
+    NaN is code 0 and a window whose median is NaN changes nothing.
+    """
+    ok = np.isfinite(disp)
+    step = max(1, -(-(dmax + 1) // CONSENSUS_LEVELS))  # disparities per code
+    code = np.zeros(disp.shape, np.uint8)
+    code[ok] = np.rint((disp[ok] - dmin) / step).astype(np.uint8) + 1
+    med = cv2.medianBlur(code, size)
+    medd = (med.astype(np.float32) - 1) * np.float32(step) + np.float32(dmin)
+    with np.errstate(invalid="ignore"):
+        outlier = ok & (med > 0) & (np.abs(disp - medd) > SPECKLE_RANGE)
+    disp[outlier] = medd[outlier]
 
 
 def _remove_speckles(disp: np.ndarray, size: int, max_diff: float) -> None:
