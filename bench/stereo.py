@@ -204,6 +204,12 @@ VARIANTS = {
     "consensus_size=11": dict(consensus_size=11),
     "texture_threshold=0, consensus_size=0 (dense, no consensus)": dict(
         texture_threshold=0.0, consensus_size=0),
+    "column_smoothing=(1, 4)": dict(column_smoothing=(1, 4)),
+    "column_smoothing=(0.5, 4)": dict(column_smoothing=(0.5, 4)),
+    "column_smoothing=(1.5, 6)": dict(column_smoothing=(1.5, 6)),
+    "column_smoothing=(2, 8)": dict(column_smoothing=(2, 8)),
+    "column_smoothing=(1, 4), consensus_size=0": dict(column_smoothing=(1, 4),
+                                                       consensus_size=0),
     "occlusion_penalty=15": dict(occlusion_penalty=15),
     "slant_penalty=10": dict(slant_penalty=10),
     "previous defaults (paper DP + its postprocessing + gradient sub-pixel)": PREVIOUS_DEFAULTS,

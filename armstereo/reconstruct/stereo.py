@@ -80,6 +80,7 @@ from armstereo.reconstruct.birchfield.refine import (
     refine_gradient,
     refine_parabola,
 )
+from armstereo.reconstruct.birchfield.vertical import match_image_vertical
 
 log = logging.getLogger(__name__)
 
@@ -101,6 +102,9 @@ PREFILTER_SIGMA = 8.0  # px: slower brightness changes than this are removed
 PREFILTER_GAIN = 2.0  # contrast of what is left (the penalties are in grey levels)
 SPECKLE_SIZE = 100  # pixels
 SPECKLE_RANGE = 2.0  # pixels of disparity
+# column_smoothing: the smoothed costs weigh as much as this many single-pixel costs when
+# the penalties are scaled (2 and 4 measured: bench/results/stereo_consistency.md)
+SMOOTHING_SCALE = 3
 CONSENSUS_SIZE = 9  # pixels: side of the consensus median's square
 CONSENSUS_LEVELS = 254  # distinct disparity codes of the consensus median (uint8, 0 = NaN)
 MEDIAN_SIZE = 5
@@ -141,7 +145,8 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
                prefilter_sigma: float = PREFILTER_SIGMA,
                prefilter_gain: float = PREFILTER_GAIN,
                photo_check: float = 0.0, column_support: bool = True,
-               consensus_size: int = CONSENSUS_SIZE) -> np.ndarray:
+               consensus_size: int = CONSENSUS_SIZE,
+               column_smoothing: tuple[float, float] | None = None) -> np.ndarray:
     """Birchfield-Tomasi pixel-to-pixel stereo (ICCV'98), made robust for real photographs.
 
     The algorithm: the sampling-insensitive symmetric dissimilarity, one dynamic programme per
@@ -226,6 +231,9 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
         raise StereoError(f"consensus_size must be 0 (off) or odd and >= 3, got {consensus_size}")
     if not photo_check >= 0:
         raise StereoError(f"photo_check must be >= 0 grey levels, got {photo_check}")
+    smooth = _smoothing(column_smoothing)
+    if smooth is not None and (color != "gray" or search != "exact"):
+        raise StereoError('column_smoothing needs color="gray" and search="exact"')
     if color != "gray" or search != "exact":  # only the paper's single-pixel kernels
         rx, ry, slant_penalty = 0, 0, None
     aggregated = (rx, ry) != (0, 0) or slant_penalty is not None
@@ -251,7 +259,8 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
                   mode=DP_EXACT if search == "exact" else DP_PRUNED, threads=n_threads,
                   rx=rx, ry=ry, slant=-1 if slant_penalty is None else int(round(
                       slant_penalty * units)), aggregated=aggregated,
-                  paper_postprocess=postprocess == "paper")
+                  paper_postprocess=postprocess == "paper",
+                  smooth=None if smooth is None else tuple(int(round(p * units)) for p in smooth))
     idx, state = _match(ml, mr, lmask, rmask, textured=textured_l, **params)
     if subpixel == "fast":
         offset = _gradient_step(gl, gr, idx, min_disparity)
@@ -385,6 +394,20 @@ def _rewarded(grey: np.ndarray, threshold: float) -> np.ndarray | None:
     return ~_textureless(np.ascontiguousarray(grey), threshold)
 
 
+def _smoothing(column_smoothing) -> tuple[float, float] | None:
+    """``(p1, p2)`` grey levels of the column pass, checked (None = off)."""
+    if column_smoothing is None:
+        return None
+    try:
+        p1, p2 = (float(v) for v in column_smoothing)
+    except (TypeError, ValueError):
+        raise StereoError(f"column_smoothing must be (p1, p2) or None, "
+                          f"got {column_smoothing!r}") from None
+    if not 0 <= p1 <= p2:
+        raise StereoError(f"column_smoothing needs 0 <= p1 <= p2, got {column_smoothing!r}")
+    return p1, p2
+
+
 def _window_radii(cost_window) -> tuple[int, int]:
     try:
         w, h = (int(v) for v in cost_window)
@@ -506,13 +529,18 @@ def _clip_to_window(disp: np.ndarray, min_disparity: int, max_disparity: int) ->
 
 
 def _match(left, right, lmask, rmask, *, dmin, nd, occ, rew, combine_max, mode, threads,
-           rx, ry, slant, aggregated, paper_postprocess, textured=None):
+           rx, ry, slant, aggregated, paper_postprocess, smooth=None, textured=None):
     """Scanline matching (+ the paper's postprocessing) -> ``(index, state)``: int32 window
     indices (-1 = no match) and the states of :mod:`armstereo.reconstruct.birchfield.dp_pruned`."""
     lm = np.ascontiguousarray(left)
     rm = np.ascontiguousarray(right)
     lk, rk = np.ascontiguousarray(lmask), np.ascontiguousarray(rmask)
-    if aggregated or (mode == DP_EXACT and not combine_max and lm.shape[2] == 1):
+    if smooth is not None:
+        out = match_image_vertical(lm[:, :, 0], rm[:, :, 0], lk, rk, dmin, nd, occ, rew,
+                                   p1=smooth[0], p2=smooth[1], scale=SMOOTHING_SCALE,
+                                   slant=slant, textured=textured)
+        idx, state = out["disp"], out["state"]
+    elif aggregated or (mode == DP_EXACT and not combine_max and lm.shape[2] == 1):
         out = match_image_aggregated(lm[:, :, 0], rm[:, :, 0], lk, rk, dmin, nd, occ, rew, rx,
                                      ry, slant=slant, textured=textured, threads=threads)
         idx, state = out["disp"], out["state"]

@@ -1,5 +1,6 @@
-"""Inter-scanline consistency after the scanline programme (issue 14): flat pixels supported
-along their column, and the consensus median that replaces streaks and blobs."""
+"""Inter-scanline consistency (issue 14): flat pixels supported along their column, the
+consensus median that replaces streaks and blobs, and the column pass on the programme's costs
+(``column_smoothing``)."""
 
 from __future__ import annotations
 
@@ -92,3 +93,51 @@ def test_answers_stay_in_the_window_with_or_without_consistency(options):
     assert ok.mean() > 0.5
     assert np.all((disp[ok] >= 2) & (disp[ok] <= 17))
     assert np.median(disp[ok]) == pytest.approx(6.0, abs=0.25)
+
+
+@pytest.mark.parametrize("smoothing", [None, (1, 4)])
+def test_column_smoothing_finds_a_fronto_parallel_plane(smoothing):
+    left = texture((60, 120), 5)
+    right = np.roll(left, -6, axis=1)
+    disp = birchfield(left, right, 15, column_smoothing=smoothing, threads=1)
+    ok = np.isfinite(disp[:, 20:-8])
+    assert ok.mean() > 0.9
+    assert np.mean(np.abs(disp[:, 20:-8][ok] - 6.0) <= 1.0) > 0.97
+
+
+def test_column_smoothing_takes_its_disparity_from_the_rows_around_it():
+    """Dense matching (no texture rule) of a band whose rows have no texture: the column pass
+    carries the plane's disparity into it, the rows alone do not know it."""
+    left = texture((60, 120), 7)
+    right = np.roll(left, -6, axis=1)
+    left[26:34] = 128
+    right[26:34] = 128
+    dense = dict(texture_threshold=0.0, reward_texture=0.0, speckle_size=0, consensus_size=0,
+                 occlusions="fill", subpixel="none", threads=1)
+    smooth = birchfield(left, right, 15, column_smoothing=(1, 4), **dense)
+    band = smooth[27:33, 20:-8]
+    assert np.mean(np.abs(band - 6.0) <= 1.0) > 0.95
+
+
+def test_column_smoothing_matches_the_masked_pixels_of_neither_view():
+    left = texture((40, 90), 9)
+    right = np.roll(left, -5, axis=1)
+    lmask = np.ones(left.shape, bool)
+    lmask[:, 70:] = False
+    disp = birchfield(left, right, 10, column_smoothing=(1, 4), left_mask=lmask, threads=1)
+    assert np.isnan(disp[:, 70:]).all()
+    ok = np.isfinite(disp)
+    assert np.all((disp[ok] >= 0) & (disp[ok] <= 10))
+
+
+@pytest.mark.parametrize("bad", [(4, 1), (-1, 2), (1,), "x"])
+def test_column_smoothing_needs_two_ordered_penalties(bad):
+    img = texture((20, 60), 3)
+    with pytest.raises(StereoError, match="column_smoothing"):
+        birchfield(img, img, 8, column_smoothing=bad)
+
+
+def test_column_smoothing_needs_the_grey_exact_programme():
+    img = texture((20, 60), 3)
+    with pytest.raises(StereoError, match="column_smoothing"):
+        birchfield(img, img, 8, column_smoothing=(1, 4), search="pruned")
