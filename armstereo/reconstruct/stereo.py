@@ -32,7 +32,8 @@ restores it) and why:
   sides of them on the row agree (a plain wall between two edges is kept, a background or a
   gap is not): the main source of points outside the object on real photographs. It costs
   answers on the large flat areas of Middlebury's Tsukuba and Venus (bad-2 counts a missing
-  answer as wrong); ``texture_threshold=0`` gives a dense map;
+  answer as wrong), most of which ``column_support`` gives back; ``texture_threshold=0``
+  gives a dense map;
 - ``column_support=True``: a flat run that its row cannot confirm (no textured pixel on one
   side, e.g. a flat stretch starting at the image's edge) keeps its disparity when the
   textured pixels above and below it in its column agree with it: the texture rule's misses
@@ -53,6 +54,13 @@ restores it) and why:
 - unchanged: ``occlusion_penalty=25``, ``match_reward=5`` (the paper's), ``color="gray"``,
   ``occlusions="nan"`` (a hole is cheaper than a false point in a cloud), ``lr_check=False``
   (twice the time), ``search="exact"``;
+- ``column_smoothing=None`` (off): smoothing the programme's costs along the columns
+  (one semi-global pass down and one up, :mod:`.birchfield.vertical`) before each row's
+  programme removes the streaks the rows decide alone (Venus bad-2 2.8 % -> 1.0 %, below
+  SGBM's 1.7 %; the synthetic table 1.0 % -> 0.2 %), but it spreads foreground disparities
+  into the dark gaps and backgrounds of real photographs (more points outside the temple's box)
+  and the matching takes about twice as long (bench/results/stereo_consistency.md,
+  bench/results/real_multiview_column_smoothing.md);
 - ``photo_check=0`` (off): rejecting matches whose views do not look alike removes the
   foreground fattening at tall edges on clean images (the mock table's crate: 11-13 mm too
   wide -> within 3.7 mm with 4 grey levels), but on real photographs correct matches
@@ -172,6 +180,12 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
     - ``consensus_size``: an answer differing by more than ``speckle_range`` from the median
       answer over this square around it is replaced by that median
       (:func:`_replace_outliers`); 0 = off. Odd, >= 3.
+    - ``column_smoothing``: ``(p1, p2)`` grey levels: the programme's node costs are first
+      smoothed along each column, down and up, as semi-global matching does along one line
+      (a one-disparity change between rows costs ``p1``, a larger one ``p2``), and each row's
+      programme runs on the sum (penalties scaled by SMOOTHING_SCALE; replaces
+      ``cost_window``'s summing; one thread, an (H, W, disparities) float32 volume). Needs
+      ``color="gray"`` and ``search="exact"``. None = off.
     - ``speckle_size``/``speckle_range``: NaN on connected regions of fewer than
       ``speckle_size`` pixels whose disparity differs by more than ``speckle_range`` from
       their surroundings (OpenCV's ``filterSpeckles``, as SGBM does); 0 = off.
