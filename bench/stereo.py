@@ -193,9 +193,25 @@ PEERS = {"Birchfield-Tomasi": dict(method="birchfield"), "StereoSGBM": dict(meth
 # Options of birchfield() scored beside the defaults: the measurements behind the defaults.
 PREVIOUS_DEFAULTS = dict(cost_window=(1, 1), slant_penalty=None, postprocess="paper",
                          texture_threshold=0.0, reward_texture=0.0, speckle_size=0,
-                         subpixel="gradient", occlusions="nan")
+                         subpixel="gradient", occlusions="nan", consensus_size=0)
 VARIANTS = {
     "defaults": {},
+    "before issue 14 item 2 (column_support=False, consensus_size=0)": dict(
+        column_support=False, consensus_size=0),
+    "column_support=False": dict(column_support=False),
+    "consensus_size=0": dict(consensus_size=0),
+    "consensus_size=7": dict(consensus_size=7),
+    "consensus_size=11": dict(consensus_size=11),
+    "texture_threshold=0, consensus_size=0 (dense, no consensus)": dict(
+        texture_threshold=0.0, consensus_size=0),
+    "column_smoothing=(1, 4)": dict(column_smoothing=(1, 4)),
+    "column_smoothing=(0.5, 4)": dict(column_smoothing=(0.5, 4)),
+    "column_smoothing=(1.5, 6)": dict(column_smoothing=(1.5, 6)),
+    "column_smoothing=(2, 8)": dict(column_smoothing=(2, 8)),
+    "column_smoothing=(1, 4), consensus_size=0": dict(column_smoothing=(1, 4),
+                                                       consensus_size=0),
+    "occlusion_penalty=15": dict(occlusion_penalty=15),
+    "slant_penalty=10": dict(slant_penalty=10),
     "previous defaults (paper DP + its postprocessing + gradient sub-pixel)": PREVIOUS_DEFAULTS,
     "PAPER_OPTIONS (the paper's matcher as published)": PAPER_OPTIONS,
     "texture_threshold=0 (dense)": dict(texture_threshold=0.0),

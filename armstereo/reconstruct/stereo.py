@@ -32,7 +32,19 @@ restores it) and why:
   sides of them on the row agree (a plain wall between two edges is kept, a background or a
   gap is not): the main source of points outside the object on real photographs. It costs
   answers on the large flat areas of Middlebury's Tsukuba and Venus (bad-2 counts a missing
-  answer as wrong); ``texture_threshold=0`` gives a dense map;
+  answer as wrong), most of which ``column_support`` gives back; ``texture_threshold=0``
+  gives a dense map;
+- ``column_support=True``: a flat run that its row cannot confirm (no textured pixel on one
+  side, e.g. a flat stretch starting at the image's edge) keeps its disparity when the
+  textured pixels above and below it in its column agree with it: the texture rule's misses
+  on Middlebury were mostly correct answers of this kind (Venus bad-2 4.6 % -> 2.8 %, the
+  640x480 synthetic table 1.9 % -> 1.1 %), while gaps and backgrounds, which their columns do
+  not confirm either, still get NaN (bench/results/real_multiview_consistency.md);
+- ``consensus_size=9``: an answer more than ``speckle_range`` from the median answer of the
+  9x9 square around it takes that median: streaks a few rows high and blobs that disagree
+  with their surface (the programme decides each scanline on its own) are replaced, at a
+  uint8 median's cost (Cones 8.2 % -> 7.6 %; 7 and 11 measured in
+  bench/results/stereo_consistency.md);
 - ``speckle_size=100``: small islands of disparity are removed as SGBM does;
 - ``postprocess="median"`` (``True``): a 5x5 median of the sub-pixel map replaces the paper's
   propagation and mode filters, which the summed costs made unnecessary (``"paper"`` keeps
@@ -42,6 +54,13 @@ restores it) and why:
 - unchanged: ``occlusion_penalty=25``, ``match_reward=5`` (the paper's), ``color="gray"``,
   ``occlusions="nan"`` (a hole is cheaper than a false point in a cloud), ``lr_check=False``
   (twice the time), ``search="exact"``;
+- ``column_smoothing=None`` (off): smoothing the programme's costs along the columns
+  (one semi-global pass down and one up, :mod:`.birchfield.vertical`) before each row's
+  programme removes the streaks the rows decide alone (Venus bad-2 2.8 % -> 1.0 %, below
+  SGBM's 1.7 %; the synthetic table 1.0 % -> 0.2 %), but it spreads foreground disparities
+  into the dark gaps and backgrounds of real photographs (more points outside the temple's box)
+  and the matching takes about twice as long (bench/results/stereo_consistency.md,
+  bench/results/real_multiview_column_smoothing.md);
 - ``photo_check=0`` (off): rejecting matches whose views do not look alike removes the
   foreground fattening at tall edges on clean images (the mock table's crate: 11-13 mm too
   wide -> within 3.7 mm with 4 grey levels), but on real photographs correct matches
@@ -69,6 +88,7 @@ from armstereo.reconstruct.birchfield.refine import (
     refine_gradient,
     refine_parabola,
 )
+from armstereo.reconstruct.birchfield.vertical import match_image_vertical
 
 log = logging.getLogger(__name__)
 
@@ -90,6 +110,11 @@ PREFILTER_SIGMA = 8.0  # px: slower brightness changes than this are removed
 PREFILTER_GAIN = 2.0  # contrast of what is left (the penalties are in grey levels)
 SPECKLE_SIZE = 100  # pixels
 SPECKLE_RANGE = 2.0  # pixels of disparity
+# column_smoothing: the smoothed costs weigh as much as this many single-pixel costs when
+# the penalties are scaled (2 and 4 measured: bench/results/stereo_consistency.md)
+SMOOTHING_SCALE = 3
+CONSENSUS_SIZE = 9  # pixels: side of the consensus median's square
+CONSENSUS_LEVELS = 254  # distinct disparity codes of the consensus median (uint8, 0 = NaN)
 MEDIAN_SIZE = 5
 OCCLUSION_MARGIN = 1.0  # pixels: see _hidden_by_nearer
 FLAT_TOLERANCE = 1.0  # pixels: see _unsupported
@@ -104,7 +129,8 @@ PHOTO_EDGE_JUMP = 2.0  # pixels of disparity: a jump a foreground can be carried
 # The paper's matcher as published (single-pixel costs, its postprocessing, nothing added)
 PAPER_OPTIONS = dict(cost_window=(1, 1), slant_penalty=None, postprocess="paper",
                      texture_threshold=0.0, reward_texture=0.0, speckle_size=0,
-                     subpixel="none", occlusions="fill")
+                     subpixel="none", occlusions="fill", column_support=False,
+                     consensus_size=0)
 
 # gradient refinement passes: averaged bad-2 3.79 % with 1, 3.72 % with 2, 3.68 % with 3
 SUBPIXEL_WINDOW = 5  # "fast" sub-pixel step: window side (pixels)
@@ -126,7 +152,9 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
                reward_texture: float = REWARD_TEXTURE, prefilter: str = "none",
                prefilter_sigma: float = PREFILTER_SIGMA,
                prefilter_gain: float = PREFILTER_GAIN,
-               photo_check: float = 0.0) -> np.ndarray:
+               photo_check: float = 0.0, column_support: bool = True,
+               consensus_size: int = CONSENSUS_SIZE,
+               column_smoothing: tuple[float, float] | None = None) -> np.ndarray:
     """Birchfield-Tomasi pixel-to-pixel stereo (ICCV'98), made robust for real photographs.
 
     The algorithm: the sampling-insensitive symmetric dissimilarity, one dynamic programme per
@@ -146,6 +174,18 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
       (:func:`_unsupported`), else NaN: no invented depth on backgrounds and gaps. 0 = off.
     - ``reward_texture``: matching a left pixel flatter than this earns no ``match_reward``,
       so the programme gains nothing by matching featureless pixels. 0 = reward everywhere.
+    - ``column_support``: a flat pixel its row does not confirm is still kept when the
+      nearest textured pixels above and below it in its column confirm it (the same test
+      along the column); False = rows only.
+    - ``consensus_size``: an answer differing by more than ``speckle_range`` from the median
+      answer over this square around it is replaced by that median
+      (:func:`_replace_outliers`); 0 = off. Odd, >= 3.
+    - ``column_smoothing``: ``(p1, p2)`` grey levels: the programme's node costs are first
+      smoothed along each column, down and up, as semi-global matching does along one line
+      (a one-disparity change between rows costs ``p1``, a larger one ``p2``), and each row's
+      programme runs on the sum (penalties scaled by SMOOTHING_SCALE; replaces
+      ``cost_window``'s summing; one thread, an (H, W, disparities) float32 volume). Needs
+      ``color="gray"`` and ``search="exact"``. None = off.
     - ``speckle_size``/``speckle_range``: NaN on connected regions of fewer than
       ``speckle_size`` pixels whose disparity differs by more than ``speckle_range`` from
       their surroundings (OpenCV's ``filterSpeckles``, as SGBM does); 0 = off.
@@ -201,8 +241,13 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
     if not (texture_threshold >= 0 and speckle_size >= 0 and speckle_range >= 0):  # NaN too
         raise StereoError(f"texture_threshold ({texture_threshold}), speckle_size "
                           f"({speckle_size}) and speckle_range ({speckle_range}) must be >= 0")
+    if consensus_size != 0 and (consensus_size < 3 or consensus_size % 2 == 0):
+        raise StereoError(f"consensus_size must be 0 (off) or odd and >= 3, got {consensus_size}")
     if not photo_check >= 0:
         raise StereoError(f"photo_check must be >= 0 grey levels, got {photo_check}")
+    smooth = _smoothing(column_smoothing)
+    if smooth is not None and (color != "gray" or search != "exact"):
+        raise StereoError('column_smoothing needs color="gray" and search="exact"')
     if color != "gray" or search != "exact":  # only the paper's single-pixel kernels
         rx, ry, slant_penalty = 0, 0, None
     aggregated = (rx, ry) != (0, 0) or slant_penalty is not None
@@ -230,7 +275,8 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
                   mode=DP_EXACT if search == "exact" else DP_PRUNED, threads=n_threads,
                   rx=rx, ry=ry, slant=-1 if slant_penalty is None else int(round(
                       slant_penalty * units)), aggregated=aggregated,
-                  paper_postprocess=postprocess == "paper")
+                  paper_postprocess=postprocess == "paper",
+                  smooth=None if smooth is None else tuple(int(round(p * units)) for p in smooth))
     idx, state = _match(ml, mr, lmask, rmask, textured=textured_l, **params)
     dense = idx.astype(np.float32)  # _match has set -1 on every pixel it rejects
     if subpixel == "fast":
@@ -240,7 +286,7 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
     reject = idx < 0
     masked = np.where(reject, np.float32(np.nan), dense)  # NaN where rejected so far
     if flat is not None:
-        _reject(masked, reject, _unsupported(masked, flat, FLAT_TOLERANCE))
+        _reject(masked, reject, _flat_rejected(masked, flat, column_support))
     if occlusions == "nan":
         _reject(masked, reject, _hidden_by_nearer(masked, OCCLUSION_MARGIN))
     if lr_check:
@@ -265,6 +311,8 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
         else:
             disp = refine_parabola(gl.astype(np.float32), gr.astype(np.float32), whole,
                                    subpixel_radius)
+    if consensus_size > 0:
+        _replace_outliers(disp, consensus_size, min_disparity, max_disparity, speckle_range)
     if speckle_size > 0:
         _remove_speckles(disp, speckle_size, speckle_range)
     disp = _clip_to_window(disp, min_disparity, max_disparity)
@@ -388,6 +436,20 @@ def _rewarded(strength: np.ndarray | None, threshold: float) -> np.ndarray | Non
     return ~(strength < threshold)
 
 
+def _smoothing(column_smoothing) -> tuple[float, float] | None:
+    """``(p1, p2)`` grey levels of the column pass, checked (None = off)."""
+    if column_smoothing is None:
+        return None
+    try:
+        p1, p2 = (float(v) for v in column_smoothing)
+    except (TypeError, ValueError):
+        raise StereoError(f"column_smoothing must be (p1, p2) or None, "
+                          f"got {column_smoothing!r}") from None
+    if not 0 <= p1 <= p2:
+        raise StereoError(f"column_smoothing needs 0 <= p1 <= p2, got {column_smoothing!r}")
+    return p1, p2
+
+
 def _window_radii(cost_window) -> tuple[int, int]:
     try:
         w, h = (int(v) for v in cost_window)
@@ -413,6 +475,17 @@ def _hidden_by_nearer(disp: np.ndarray, margin: float) -> np.ndarray:
     with np.errstate(invalid="ignore"):  # NaN compares False
         np.greater_equal(xr[:, :-1], lowest[:, 1:] + margin, out=hidden[:, :-1])
     return hidden
+
+
+def _flat_rejected(disp: np.ndarray, flat: np.ndarray, column_support: bool) -> np.ndarray:
+    """Flat pixels that keep no disparity: unsupported along their row and, with
+    ``column_support``, also along their column (:func:`_unsupported` on the transpose)."""
+    rejected = _unsupported(disp, flat, FLAT_TOLERANCE)
+    if column_support:
+        # C-ordered copies: _unsupported works on flat (row-major) indices
+        rejected &= _unsupported(np.ascontiguousarray(disp.T), np.ascontiguousarray(flat.T),
+                                 FLAT_TOLERANCE).T
+    return rejected
 
 
 def _unsupported(disp: np.ndarray, flat: np.ndarray, tolerance: float) -> np.ndarray:
@@ -478,6 +551,27 @@ def _texture_strength(grey: np.ndarray) -> np.ndarray:
     return cv2.blur(gx, (TEXTURE_WINDOW, TEXTURE_WINDOW), dst=gx)
 
 
+def _replace_outliers(disp: np.ndarray, size: int, dmin: int, dmax: int,
+                      max_diff: float = SPECKLE_RANGE) -> None:
+    """Answered pixels more than ``max_diff`` from the median answer of the ``size`` square
+    around them take that median (in place): a streak a few rows high, or a blob, that
+    disagrees with the surface around it is replaced by what the surface says.
+
+    The median runs on a uint8 copy (OpenCV's any-size median): whole disparities above
+    ``dmin``, or pairs of them where the window holds more than CONSENSUS_LEVELS values;
+    NaN is code 0 and a window whose median is NaN changes nothing.
+    """
+    ok = np.isfinite(disp)
+    step = max(1, -(-(dmax + 1) // CONSENSUS_LEVELS))  # disparities per code
+    code = np.zeros(disp.shape, np.uint8)
+    code[ok] = np.rint((disp[ok] - dmin) / step).astype(np.uint8) + 1
+    med = cv2.medianBlur(code, size)
+    medd = (med.astype(np.float32) - 1) * np.float32(step) + np.float32(dmin)
+    with np.errstate(invalid="ignore"):
+        outlier = ok & (med > 0) & (np.abs(disp - medd) > max_diff)
+    disp[outlier] = medd[outlier]
+
+
 def _remove_speckles(disp: np.ndarray, size: int, max_diff: float) -> None:
     """NaN on small regions of similar disparity (in place; OpenCV's filterSpeckles on a
     1/16-pixel int16 copy)."""
@@ -496,13 +590,18 @@ def _clip_to_window(disp: np.ndarray, min_disparity: int, max_disparity: int) ->
 
 
 def _match(left, right, lmask, rmask, *, dmin, nd, occ, rew, combine_max, mode, threads,
-           rx, ry, slant, aggregated, paper_postprocess, textured=None):
+           rx, ry, slant, aggregated, paper_postprocess, smooth=None, textured=None):
     """Scanline matching (+ the paper's postprocessing) -> ``(index, state)``: int32 window
     indices (-1 = no match) and the states of :mod:`armstereo.reconstruct.birchfield.dp_pruned`."""
     lm = np.ascontiguousarray(left)
     rm = np.ascontiguousarray(right)
     lk, rk = np.ascontiguousarray(lmask), np.ascontiguousarray(rmask)
-    if aggregated or (mode == DP_EXACT and not combine_max and lm.shape[2] == 1):
+    if smooth is not None:
+        out = match_image_vertical(lm[:, :, 0], rm[:, :, 0], lk, rk, dmin, nd, occ, rew,
+                                   p1=smooth[0], p2=smooth[1], scale=SMOOTHING_SCALE,
+                                   slant=slant, textured=textured)
+        idx, state = out["disp"], out["state"]
+    elif aggregated or (mode == DP_EXACT and not combine_max and lm.shape[2] == 1):
         out = match_image_aggregated(lm[:, :, 0], rm[:, :, 0], lk, rk, dmin, nd, occ, rew, rx,
                                      ry, slant=slant, textured=textured, threads=threads)
         idx, state = out["disp"], out["state"]

@@ -131,8 +131,9 @@ def test_the_subpixel_step_stays_within_its_bound(d_true, max_d, radius, mode, s
     would run off towards it); the one exception is a pixel so near the left edge that the
     refined partner ``x - d`` left the right image (documented: no answer there)."""
     left, right = fractional_pair(d_true, shape=(30, 80), seed=seed)
-    # speckle removal runs after the refinement, on the refined values: left out here
-    kw = dict(occlusions=occlusions, subpixel_radius=radius, speckle_size=0)
+    # speckle removal and the consensus median run after the refinement, on the refined
+    # values: left out here
+    kw = dict(occlusions=occlusions, subpixel_radius=radius, speckle_size=0, consensus_size=0)
     coarse = birchfield(left, right, max_d, subpixel="none", **kw)
     fine = birchfield(left, right, max_d, subpixel=mode, **kw)
     bound = SUBPIXEL_MAX_SHIFT if mode == "gradient" else PARABOLA_MAX_SHIFT
@@ -148,8 +149,9 @@ def test_the_subpixel_bound_is_reached_when_the_surface_is_beyond_the_window():
     gradient step heads for the plane and stops at the bound (so the test above is not
     vacuous)."""
     left, right = fractional_pair(17.4, shape=(40, 100))
-    coarse = birchfield(left, right, 15, subpixel="none")
-    fine = birchfield(left, right, 15, subpixel="gradient")
+    # the consensus median runs after the refinement, on the refined values: left out here
+    coarse = birchfield(left, right, 15, subpixel="none", consensus_size=0)
+    fine = birchfield(left, right, 15, subpixel="gradient", consensus_size=0)
     shift = np.abs(fine - coarse)
     assert np.nanmax(shift) == np.float32(SUBPIXEL_MAX_SHIFT)
 
@@ -224,7 +226,7 @@ def test_range_and_width_errors_name_the_numbers():
 
 # The matcher's answer without anything after the programme: whole disparities or NaN.
 WHOLE = dict(subpixel="none", postprocess="none", texture_threshold=0.0, occlusions="fill",
-             speckle_size=0, reward_texture=0.5)
+             speckle_size=0, consensus_size=0, reward_texture=0.5)
 
 
 def window_index(disp: np.ndarray, min_d: int) -> np.ndarray:
