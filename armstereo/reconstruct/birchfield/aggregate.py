@@ -36,7 +36,6 @@ from armstereo.reconstruct.birchfield.lanes import (
     LANES,
     SLANT,
     lane_backtrack,
-    lane_costs,
     lane_forward,
     lane_setup,
 )
@@ -111,31 +110,33 @@ def _match_blocks(starts: range, images: tuple, params: tuple, out: dict) -> Non
     left3, right3, fl, fr, lmask, rmask, textured = images
     dmin, nd, rx, ry, q, pens = params
     disp, state = out["disp"], out["state"]
-    geo, pen_l, rew, pen_r, flags, bounds, col, raw, dn, phi, rbest, run, ints, sloc = (
-        _lane_work(fl.shape[1], nd, rx, ry))
+    geo, pen_l, rew, pen_r, flags, costs, phi, rbest, run, ints, sloc = _lane_work(
+        fl.shape[1], nd, rx, ry)
     slant = pens[SLANT]
     for row0 in starts:
         x_begin, x_end = lane_setup(left3, right3, lmask, rmask, textured, row0, dmin, nd, pens,
                                     disp, state, geo, pen_l, rew, pen_r, flags)
         if x_end <= x_begin:
             continue
-        lane_costs(fl, fr, row0, rx, ry, dmin, q, geo, x_begin, x_end, bounds, col, raw, dn)
-        lane_forward(dn, geo, x_begin, x_end, pen_l, rew, pen_r, slant, phi, rbest, run)
-        lane_backtrack(dn, geo, phi, pen_l, rew, pen_r, slant, row0, dmin, ints, sloc, disp,
-                       state)
+        lane_forward(fl, fr, row0, rx, ry, dmin, q, geo, x_begin, x_end, pen_l, rew, pen_r,
+                     slant, costs, phi, rbest, run)
+        lane_backtrack(costs[0], rx, ry, dmin, q, geo, phi, pen_l, rew, pen_r, slant, row0,
+                       ints, sloc, disp, state)
 
 
 def _lane_work(W: int, nd: int, rx: int, ry: int) -> tuple:
     """Work arrays of one thread, allocated here rather than in the kernels: every array type
     a kernel creates compiles its own allocation code (numba's cold start).
 
-    ``(geo, pen_l, rew, pen_r, flags, bounds, col, raw, dn, phi, rbest, run, ints, sloc)`` as
-    the kernels of :mod:`.lanes` name them; ``phi`` starts INF (its padding stays so).
+    ``(geo, pen_l, rew, pen_r, flags, costs, phi, rbest, run, ints, sloc)`` as the kernels
+    of :mod:`.lanes` name them, ``costs`` = ``(bounds, col, lims, ring, d)``; ``phi`` starts
+    INF (its padding stays so).
     """
-    f32, L, nj = np.float32, LANES, LANES + 2 * ry
+    f32, L = np.float32, LANES
+    nj = -(-(L + 2 * ry) // L) * L  # rows of the block and its window, in whole vectors
+    costs = (np.zeros((6, W, nj), f32), np.empty((nd, nj), f32), np.empty((2, L), f32),
+             np.empty((2 * rx + 1, nd, L), f32), np.empty((2, nd, L), f32))
     return (np.zeros((GEO, L), np.int64), np.empty((W + nd + 2, L), f32),
             np.empty((W + nd + 2, L), f32), np.empty((W, L), f32), np.empty((2, W), np.bool_),
-            np.empty((6, W, nj), f32), np.empty(nj, f32),
-            np.empty((W if rx else 1, nd, L), f32), np.empty((W, nd, L), f32),
-            np.full((W + 1, nd + 2, L), INF, f32), np.empty((W + nd + 1, L), f32),
+            costs, np.full((W + 1, nd + 2, L), INF, f32), np.empty((W + nd + 1, L), f32),
             np.empty(L, f32), np.empty((2, W), np.int32), np.empty(W, np.uint8))

@@ -31,7 +31,7 @@ from armstereo.reconstruct.birchfield.dp_exact import VALID_BELOW
 from armstereo.reconstruct.birchfield.dp_pruned import C0
 from armstereo.reconstruct.birchfield.jit import njit
 from armstereo.reconstruct.birchfield.matcher import _begin_row, _store_row
-from armstereo.reconstruct.birchfield.simd import LANES, lanewise, vmin
+from armstereo.reconstruct.birchfield.simd import LANES, lanewise, vfloor, vmax, vmin
 
 # rows of the (GEO, LANES) int64 geometry of a block: the valid runs of the left
 # (la, lb) and right (ra, rb) rows, the programme's ranges (r0, r1, x0, u1), active flag
@@ -100,41 +100,81 @@ def _lane_penalties(left3, right3, textured, g, dmin, nd, pens, lane, pen_l, rew
 
 
 @njit(cache=True, nogil=True, fastmath=True)
-def lane_costs(left, right, row0, rx, ry, dmin, q, geo, x_begin, x_end, bounds, col, raw, dn):
-    """Node costs of the block: ``dn[x, k, lane]`` for right pixels ``x_begin .. x_end - 1``,
-    the BT dissimilarities of :func:`.aggregate._row_slab` summed over the ``(2 ry + 1) x
-    (2 rx + 1)`` window (image rows and columns clamped), divided by ``q`` (floor), INF where
-    ``x + k`` is outside the lane's ``[x0, u1)`` (as :func:`.aggregate._load`).
+def lane_forward(left, right, row0, rx, ry, dmin, q, geo, x_begin, x_end, pen_l, rew, pen_r,
+                 slant, costs, phi, rbest, run):
+    """The forward pass of :func:`.aggregate._forward` for every lane in lockstep, on node
+    costs computed as it goes (:func:`_node_costs`): an image's worth of them, per lane, would
+    not stay in the cache between two passes.
 
-    ``left``/``right``: (H, W) uint8 filled grey images. Work arrays: ``bounds`` (6, W,
-    LANES + 2 ry), ``col`` (LANES + 2 ry), ``raw`` (W, nd, LANES) (unused if ``rx`` is 0).
-    Every sum is of integers below float32's exact range, so its order does not change it.
+    ``left``/``right``: (H, W) uint8 filled grey images. Node ``(x, k)`` of a lane is
+    ``phi[x + 1, k + 1, lane]`` (row 0 and columns 0 and ``nd + 1`` stay INF);
+    ``rbest[u, lane]``: the running minimum of right-occlusion costs into shifted left pixel
+    ``u``; ``run`` (LANES,) float32 scratch. ``slant``: the scaled one-pixel-jump penalty
+    (INF: none). ``costs``: the work arrays of :func:`_block_costs`.
     """
-    W = left.shape[1]
-    _lane_bounds(left, right, row0 - ry, bounds)
-    xa, xb = max(0, x_begin - rx), min(W, x_end + rx)
-    if rx == 0:
-        for x in range(xa, xb):
-            _vertical_sums(bounds, x, dmin, ry, col, dn[x])
-            _finish(dn[x], x, geo, q)
-        return
-    for x in range(xa, xb):
-        _vertical_sums(bounds, x, dmin, ry, col, raw[x])
+    nd = phi.shape[1] - 2
+    inf = np.float32(INF)
+    bounds, col, lims, ring, d = costs
+    _block_bounds(left, right, row0 - ry, ry, geo, bounds, lims)
+    for c in range(x_begin - rx, x_begin + rx):
+        _column_sums(bounds, c, dmin, ry, col, ring)
+    _node_costs(bounds, x_begin, rx, ry, dmin, q, lims, col, ring, d[x_begin % 2])
+    for u in range(x_begin, x_end + nd):
+        for lane in range(LANES):
+            rbest[u, lane] = inf
     for x in range(x_begin, x_end):
-        out = dn[x]
-        _copy(raw[max(0, x - rx)], out)
-        for dx in range(-rx + 1, rx + 1):
-            _add(raw[min(W - 1, max(0, x + dx))], out)
-        _finish(out, x, geo, q)
+        here = d[x % 2]
+        for lane in range(LANES):
+            if geo[ACTIVE, lane] and geo[R0, lane] == x:
+                _start_lane(here, lane, phi[x], phi[x + 1], rbest[x:x + nd])
+        if x + 1 < x_end:
+            there = d[(x + 1) % 2]
+            _node_costs(bounds, x + 1, rx, ry, dmin, q, lims, col, ring, there)
+            _step(there, phi[x], phi[x + 1], phi[x + 2], pen_l[x + 1:x + 1 + nd],
+                  rew[x + 1:x + 1 + nd], pen_r[x], rbest[x:x + nd], slant, run)
 
 
 @njit(cache=True, inline="always")
-def _lane_bounds(left, right, top, bounds):
+def _block_bounds(left, right, top, ry, geo, bounds, lims):
+    """The block's BT intervals (:func:`_lane_bounds`) and its lanes' ``x0``/``u1`` as
+    float32 (``lims``), to compare in float32 vectors."""
+    _lane_bounds(left, right, top, ry, bounds)
+    for lane in range(LANES):
+        lims[0, lane] = geo[X0, lane]
+        lims[1, lane] = geo[U1, lane]
+
+
+@njit(cache=True, inline="always")
+def _column_sums(bounds, c, dmin, ry, col, ring):
+    """BT dissimilarities of right column ``c`` (clamped to the image) summed over each
+    lane's rows (:func:`_vertical_sums`), into ``ring[c mod len(ring)]``."""
+    W = bounds.shape[1]
+    _vertical_sums(bounds, min(W - 1, max(0, c)), dmin, ry, col, ring[c % ring.shape[0]])
+
+
+@njit(cache=True, inline="always")
+def _node_costs(bounds, x, rx, ry, dmin, q, lims, col, ring, out):
+    """Node costs of right pixel ``x``, ``out[k, lane]``: the BT dissimilarities summed over
+    the ``(2 ry + 1) x (2 rx + 1)`` window (rows and columns clamped to the image), divided by
+    ``q`` (floor), INF where ``x + k`` is outside the lane's ``[x0, u1)`` (as
+    :func:`.aggregate._load`). ``ring`` holds the column sums of ``x - rx - 1 .. x + rx - 1``
+    on entry, of ``x - rx .. x + rx`` on return. Every sum is of integers below float32's
+    exact range, so its order does not change it."""
+    _column_sums(bounds, x + rx, dmin, ry, col, ring)
+    for k in range(out.shape[0]):
+        _copy(((ring, 0, k, 0), (out, k, 0)), ())
+        for s in range(1, ring.shape[0]):
+            _add(((ring, s, k, 0), (out, k, 0)), ())
+    _finish(out, x, lims, q)
+
+
+@njit(cache=True, inline="always")
+def _lane_bounds(left, right, top, ry, bounds):
     """Doubled value and min/max of the half-samples (BT intervals, as
     :func:`.aggregate._bounds`) of image rows ``top ..`` (clamped), row ``j`` of the block in
     column ``j``: ``bounds[0..2]`` left, ``bounds[3..5]`` right."""
-    H, W = left.shape
-    for j in range(bounds.shape[2]):
+    H = left.shape[0]
+    for j in range(LANES + 2 * ry):  # the columns after these only pad the last vector
         r = min(H - 1, max(0, top + j))
         _row_bounds(left[r], j, bounds[0], bounds[1], bounds[2])
         _row_bounds(right[r], j, bounds[3], bounds[4], bounds[5])
@@ -156,77 +196,66 @@ def _row_bounds(row, j, v, vmin, vmax):
 def _vertical_sums(bounds, x, dmin, ry, col, out):
     """``out[k, lane]``: BT dissimilarity of right pixel ``x`` and left pixel ``x + dmin + k``
     (the last column past the right edge) summed over the ``2 ry + 1`` rows around the lane;
-    ``col`` (>= LANES + 2 ry) is scratch."""
+    ``col`` (nd, nj) is scratch. Two passes: a vector load across two recent stores waits for
+    them to reach the cache, so the rows are all stored before the shifted loads begin."""
     W = bounds.shape[1]
-    nj = bounds.shape[2]
     zero = np.float32(0.0)
-    rv, rmin, rmax = bounds[3, x], bounds[4, x], bounds[5, x]
+    b = bounds
+    for j in range(0, col.shape[1], LANES):  # k inner: the right pixel's loads stay put
+        for k in range(out.shape[0]):
+            u = min(W - 1, x + dmin + k)
+            _bt(((b, 0, u, j), (b, 1, u, j), (b, 2, u, j), (b, 3, x, j), (b, 4, x, j),
+                 (b, 5, x, j), (col, k, j)), (zero,))
     for k in range(out.shape[0]):
-        u = min(W - 1, x + dmin + k)
-        lv, lmin, lmax = bounds[0, u], bounds[1, u], bounds[2, u]
-        for j in range(nj):
-            b = lv[j]
-            a = rv[j]
-            col[j] = min(max(zero, max(b - rmax[j], rmin[j] - b)),
-                         max(zero, max(a - lmax[j], lmin[j] - a)))
-        o = out[k]
-        for lane in range(LANES):
-            o[lane] = col[lane]
+        _copy(((col, k, 0), (out, k, 0)), ())
         for t in range(1, 2 * ry + 1):
-            for lane in range(LANES):
-                o[lane] += col[lane + t]
+            _add(((col, k, t), (out, k, 0)), ())
+
+
+@lanewise
+def _bt(b, lv, lmin, lmax, rv, rmin, rmax, out, zero):
+    """BT dissimilarity, lane-wise, of left values ``lv`` in ``[lmin, lmax]`` and right values
+    ``rv`` in ``[rmin, rmax]`` (as :func:`.aggregate._bt_costs`)."""
+    d_l = vmax(b, zero, vmax(b, b.fsub(lv, rmax), b.fsub(rmin, lv)))
+    d_r = vmax(b, zero, vmax(b, b.fsub(rv, lmax), b.fsub(lmin, rv)))
+    return {6: vmin(b, d_l, d_r)}
+
+
+@lanewise
+def _copy(b, src, dst):
+    return {1: src}
+
+
+@lanewise
+def _add(b, src, dst):
+    return {1: b.fadd(dst, src)}
 
 
 @njit(cache=True, inline="always")
-def _copy(src, dst):
-    for k in range(dst.shape[0]):
-        for lane in range(LANES):
-            dst[k, lane] = src[k, lane]
-
-
-@njit(cache=True, inline="always")
-def _add(src, dst):
-    for k in range(dst.shape[0]):
-        for lane in range(LANES):
-            dst[k, lane] += src[k, lane]
-
-
-@njit(cache=True, inline="always")
-def _finish(out, x, geo, q):
+def _finish(out, x, lims, q):
     """Node costs of right pixel ``x`` in place: divided by ``q``, INF outside ``[x0, u1)``."""
     inf = np.float32(INF)
     iq = np.float32(1.0 / q)
-    x0, u1 = geo[X0], geo[U1]
     for k in range(out.shape[0]):
-        o = out[k]
-        u = x + k
-        for lane in range(LANES):
-            ok = x0[lane] <= u < u1[lane]
-            c = o[lane] if q == 1 else np.floor(o[lane] * iq)
-            o[lane] = c if ok else inf
+        u = np.float32(x + k)
+        if q == 1:
+            _mask(((out, k, 0), (lims, 0, 0), (lims, 1, 0)), (u, inf))
+        else:
+            _mask_divided(((out, k, 0), (lims, 0, 0), (lims, 1, 0)), (u, inf, iq))
 
 
-@njit(cache=True, nogil=True, fastmath=True)
-def lane_forward(dn, geo, x_begin, x_end, pen_l, rew, pen_r, slant, phi, rbest, run):
-    """The forward pass of :func:`.aggregate._forward` for every lane in lockstep.
+@lanewise
+def _mask(b, cost, x0, u1, u, inf):
+    """``cost`` where ``x0 <= u < u1``, else ``inf``."""
+    ok = b.and_(b.fcmp_ordered("<=", x0, u), b.fcmp_ordered("<", u, u1))
+    return {0: b.select(ok, cost, inf)}
 
-    Node ``(x, k)`` of a lane is ``phi[x + 1, k + 1, lane]`` (row 0 and columns 0 and
-    ``nd + 1`` stay INF); ``rbest[u, lane]``: the running minimum of right-occlusion costs
-    into shifted left pixel ``u``; ``run`` (LANES,) float32 scratch. ``slant``: the scaled
-    one-pixel-jump penalty (INF: none).
-    """
-    nd = dn.shape[1]
-    inf = np.float32(INF)
-    for u in range(x_begin, x_end + nd):
-        for lane in range(LANES):
-            rbest[u, lane] = inf
-    for x in range(x_begin, x_end):
-        for lane in range(LANES):
-            if geo[ACTIVE, lane] and geo[R0, lane] == x:
-                _start_lane(dn[x], lane, phi[x], phi[x + 1], rbest[x:x + nd])
-        if x + 1 < x_end:
-            _step(dn[x + 1], phi[x], phi[x + 1], phi[x + 2], pen_l[x + 1:x + 1 + nd],
-                  rew[x + 1:x + 1 + nd], pen_r[x], rbest[x:x + nd], slant, run)
+
+@lanewise
+def _mask_divided(b, cost, x0, u1, u, inf, iq):
+    """:func:`_mask` of ``floor(cost * iq)``."""
+    ok = b.and_(b.fcmp_ordered("<=", x0, u), b.fcmp_ordered("<", u, u1))
+    return {0: b.select(ok, vfloor(b, b.fmul(cost, iq)), inf)}
 
 
 @njit(cache=True, inline="always")
@@ -250,8 +279,8 @@ def _step(d, prev, cur, nxt, pen_l, rew, pen_r, rbest, slant, run):
     for lane in range(LANES):
         run[lane] = inf
     for k in range(d.shape[0]):
-        _node_update((cur[k], cur[k + 1], prev[k + 2], d[k], pen_l[k], rew[k], rbest[k], pen_r,
-                      run, nxt[k + 1]), (slant, inf))
+        _node_update(((cur, k, 0), (cur, k + 1, 0), (prev, k + 2, 0), (d, k, 0), (pen_l, k, 0),
+                      (rew, k, 0), (rbest, k, 0), pen_r, run, (nxt, k + 1, 0)), (slant, inf))
 
 
 @lanewise
@@ -268,17 +297,19 @@ def _node_update(b, c0, c1, p2, dk, pl, rw, rb, pr, run, out, slant, inf):
 
 
 @njit(cache=True, nogil=True)
-def lane_backtrack(dn, geo, phi, pen_l, rew, pen_r, slant, row0, dmin, ints, sloc, disp,
-                   state):
+def lane_backtrack(bounds, rx, ry, dmin, q, geo, phi, pen_l, rew, pen_r, slant, row0, ints,
+                   sloc, disp, state):
     """Walk back each active lane's path (:func:`_walk`) and decode it into its output row.
-    ``ints`` (2, W) int32 and ``sloc`` (W,) uint8 are scratch."""
+    ``bounds``: the block's BT intervals as :func:`lane_forward` left them; ``ints`` (2, W)
+    int32 and ``sloc`` (W,) uint8 are scratch."""
     match, dloc = ints[0], ints[1]
     for lane in range(LANES):
         if not geo[ACTIVE, lane]:
             continue
         r0, r1, x0, u1 = geo[R0, lane], geo[R1, lane], geo[X0, lane], geo[U1, lane]
         nx = u1 - r0
-        if _walk(dn[r0:r1, :, lane], phi[r0:, :, lane], pen_l[r0:, lane], rew[r0:, lane],
+        cost = (bounds, lane, r0, rx, ry, dmin, q)
+        if _walk(cost, r1 - r0, phi[r0:, :, lane], pen_l[r0:, lane], rew[r0:, lane],
                  pen_r[r0:, lane], slant, nx, match[:nx]):
             r = row0 + lane
             _store_row(match[:nx], geo[LA, lane], geo[LB, lane], r0, x0 - r0, dmin, dloc, sloc,
@@ -286,11 +317,12 @@ def lane_backtrack(dn, geo, phi, pen_l, rew, pen_r, slant, row0, dmin, ints, slo
 
 
 @njit(cache=True, inline="always")
-def _walk(cost, phi, pen_l, rew, pen_r, slant, nx, match):
+def _walk(cost, ny, phi, pen_l, rew, pen_r, slant, nx, match):
     """:func:`.aggregate._backtrack` on one lane, in the row's local coordinates: ``cost``
-    (ny, nd) node costs, ``phi`` padded as there, ``pen_r[y]`` the right-occlusion penalty
-    after right pixel ``y``. Same tests in the same order (the same tie-breaking)."""
-    ny, nd = cost.shape
+    the arguments of :func:`_node_cost` after the node, ``phi`` padded as there, ``pen_r[y]``
+    the right-occlusion penalty after right pixel ``y``. Same tests in the same order (the
+    same tie-breaking)."""
+    nd = phi.shape[1] - 2
     for x in range(match.shape[0]):
         match[x] = -1
     best = np.float32(VALID_BELOW)
@@ -308,7 +340,7 @@ def _walk(cost, phi, pen_l, rew, pen_r, slant, nx, match):
         match[y + k] = y
         if y == 0:
             break
-        before = phi[y + 1, k + 1] - cost[y, k] + rew[y + k]
+        before = phi[y + 1, k + 1] - _node_cost(y, k, cost) + rew[y + k]
         if phi[y, k + 1] == before:
             y -= 1
             continue
@@ -340,3 +372,22 @@ def _walk(cost, phi, pen_l, rew, pen_r, slant, nx, match):
         y = x - kb
         k = kb
     return True
+
+
+@njit(cache=True, inline="always")
+def _node_cost(y, k, cost):
+    """The cost of node ``(r0 + y, k)`` of ``lane``, as :func:`_node_costs` computes it (the
+    same integer: only the order of the sum differs); ``cost``: ``(bounds, lane, r0, rx, ry,
+    dmin, q)``."""
+    bounds, lane, r0, rx, ry, dmin, q = cost
+    W = bounds.shape[1]
+    zero = np.float32(0.0)
+    total = zero
+    for dx in range(-rx, rx + 1):
+        c = min(W - 1, max(0, r0 + y + dx))
+        u = min(W - 1, c + dmin + k)
+        for j in range(lane, lane + 2 * ry + 1):
+            b, a = bounds[0, u, j], bounds[3, c, j]
+            total += min(max(zero, max(b - bounds[5, c, j], bounds[4, c, j] - b)),
+                         max(zero, max(a - bounds[2, u, j], bounds[1, u, j] - a)))
+    return total if q == 1 else np.floor(total * np.float32(1.0 / q))
