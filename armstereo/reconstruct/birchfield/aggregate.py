@@ -5,14 +5,18 @@ independently (streaks) and every noise-level cost difference counts. Here the n
 ``(right pixel xr, disparity index k)`` is the *sum* of the Birchfield-Tomasi dissimilarities
 over a ``(2 ry + 1) x (2 rx + 1)`` window around it at the same disparity; the match-sequence
 model, the occlusion rule (jumps only next to intensity variation) and the exact programme are
-those of :mod:`.dp_fast`, with the penalties scaled by the window's pixel count so that they
+those of :mod:`.dp_exact`, with the penalties scaled by the window's pixel count so that they
 keep their per-pixel meaning. A one-pixel disparity step may also cost a smaller ``slant``
 penalty, without intensity variation (a slanted surface rather than an occlusion).
 
-Rows are processed in a contiguous block: a ring of ``2 ry + 1`` horizontally summed rows and
-their running vertical sum give each row's (W, nd) cost slab with a few additions per entry.
-Pixels outside the validity masks take part in the sums with the edge-replicated values the
-caller fills in (a row's programme itself only uses its valid run, as in :mod:`.matcher`).
+Each row has its own programme, but rows run :data:`.lanes.LANES` at a time in lockstep, one
+row per SIMD lane (:mod:`.lanes`): every step of the programme, the running minimum over
+disparities included, is then one vector operation, and node costs are summed as the forward
+pass goes. A Python loop drives the blocks through three small kernels (setup, forward,
+backtrack), which numba compiles separately: far less compile time than one kernel with every
+step inlined (bench/results/dp_lanes.md). Pixels outside the validity masks take part in the
+sums with the edge-replicated values the caller fills in (a row's programme itself only uses
+its valid run, as in :mod:`.matcher`).
 
 The reward for a match can be withheld per left pixel (``textured``): matching a featureless
 pixel then gains nothing, so the programme has no reason to bend its path through a black gap

@@ -14,8 +14,20 @@ where ``u`` lies outside the lane's ``[x0, u1)``. All lanes step through the rig
 the block's union of ranges; a lane's values before its own ``r0`` are garbage and are reset
 when it starts (the row before it to INF, its first row to the start costs, its running
 minima to INF), and its values from ``r1`` on are never read. Every lane therefore does the
-same float32 operations in the same order as the one-row programme of :mod:`.aggregate`:
-identical costs, identical paths. The backtrack stays per lane (scalar).
+same float32 operations in the same order as the one-row programme did before (main up to
+commit 860bbe9, ``aggregate.match_block``): identical costs, identical paths, which
+tests/data/birchfield_rows holds the proof of. The backtrack stays per lane (scalar).
+
+The programme of one row, on node costs ``c(x, k)`` (window sums of BT dissimilarities, INF
+where the left pixel ``x + k`` is outside the row's range), ``phi(x, k)`` being the cheapest
+path into node ``(x, k)``: ``phi(r0, k) = C0 + c(r0, k)``, and ``phi(x + 1, k)`` is the least
+of ``phi(x, k)`` (both pixels advance), ``phi(x, k') + pen_l(x + 1 + k)`` for ``k' < k``
+(left pixels skipped), ``phi(x', x + k - x') + pen_r(x')`` for ``x' < x`` (right pixels
+skipped; ``rbest`` keeps its running minimum per left pixel) and ``min(phi(x, k - 1),
+phi(x - 1, k + 1)) + slant`` (one-pixel steps), plus ``c(x + 1, k)`` minus the reward,
+clamped to INF. The backtrack re-derives each step from ``phi`` by equality, in a fixed
+order of preference (no jump, slant steps, left skip with the smallest ``k'``, right skip
+with the largest ``k``): exact float32 integers make the equalities hold.
 
 The kernels are small and called from Python per block (:func:`.aggregate.match_image_aggregated`):
 numba then compiles each once, instead of re-optimising every callee inside one large kernel
@@ -79,8 +91,9 @@ def lane_setup(left3, right3, lmask, rmask, textured, row0, dmin, nd, pens, disp
 @njit(cache=True, inline="always")
 def _lane_penalties(left3, right3, textured, g, dmin, nd, pens, lane, pen_l, rew, pen_r, gl,
                     gr):
-    """One lane's penalties and rewards as :func:`.aggregate.match_block` sets them for a row
-    (local left pixel ``i`` is shifted left pixel ``r0 + i``)."""
+    """One lane's penalties and rewards (local left pixel ``i`` is shifted left pixel
+    ``r0 + i``): a left occlusion costs ``occ`` next to intensity variation, ``occ + novar``
+    elsewhere and past the row's left pixels; only textured left pixels earn the reward."""
     r0, r1, x0, u1 = g[R0], g[R1], g[X0], g[U1]
     nx, x_lo = u1 - r0, x0 - r0
     occ_s, rew_s, novar = pens[OCC], pens[REW], pens[NOVAR]
@@ -102,7 +115,7 @@ def _lane_penalties(left3, right3, textured, g, dmin, nd, pens, lane, pen_l, rew
 @njit(cache=True, nogil=True, fastmath=True)
 def lane_forward(left, right, row0, rx, ry, dmin, q, geo, x_begin, x_end, pen_l, rew, pen_r,
                  slant, costs, phi, rbest, run):
-    """The forward pass of :func:`.aggregate._forward` for every lane in lockstep, on node
+    """The forward pass of the programme (module doc) for every lane in lockstep, on node
     costs computed as it goes (:func:`_node_costs`): an image's worth of them, per lane, would
     not stay in the cache between two passes.
 
@@ -156,10 +169,9 @@ def _column_sums(bounds, c, dmin, ry, col, ring):
 def _node_costs(bounds, x, rx, ry, dmin, q, lims, col, ring, out):
     """Node costs of right pixel ``x``, ``out[k, lane]``: the BT dissimilarities summed over
     the ``(2 ry + 1) x (2 rx + 1)`` window (rows and columns clamped to the image), divided by
-    ``q`` (floor), INF where ``x + k`` is outside the lane's ``[x0, u1)`` (as
-    :func:`.aggregate._load`). ``ring`` holds the column sums of ``x - rx - 1 .. x + rx - 1``
-    on entry, of ``x - rx .. x + rx`` on return. Every sum is of integers below float32's
-    exact range, so its order does not change it."""
+    ``q`` (floor), INF where ``x + k`` is outside the lane's ``[x0, u1)``. ``ring`` holds the
+    column sums of ``x - rx - 1 .. x + rx - 1`` on entry, of ``x - rx .. x + rx`` on return.
+    Every sum is of integers below float32's exact range, so its order does not change it."""
     _column_sums(bounds, x + rx, dmin, ry, col, ring)
     for k in range(out.shape[0]):
         _copy(((ring, 0, k, 0), (out, k, 0)), ())
@@ -170,9 +182,9 @@ def _node_costs(bounds, x, rx, ry, dmin, q, lims, col, ring, out):
 
 @njit(cache=True, inline="always")
 def _lane_bounds(left, right, top, ry, bounds):
-    """Doubled value and min/max of the half-samples (BT intervals, as
-    :func:`.aggregate._bounds`) of image rows ``top ..`` (clamped), row ``j`` of the block in
-    column ``j``: ``bounds[0..2]`` left, ``bounds[3..5]`` right."""
+    """Doubled value and min/max of the half-samples (BT intervals, :mod:`.cost`) of image
+    rows ``top .. top + LANES + 2 ry - 1`` (clamped), row ``j`` of the block in column ``j``:
+    ``bounds[0..2]`` left, ``bounds[3..5]`` right."""
     H = left.shape[0]
     for j in range(LANES + 2 * ry):  # the columns after these only pad the last vector
         r = min(H - 1, max(0, top + j))
@@ -215,7 +227,8 @@ def _vertical_sums(bounds, x, dmin, ry, col, out):
 @lanewise
 def _bt(b, lv, lmin, lmax, rv, rmin, rmax, out, zero):
     """BT dissimilarity, lane-wise, of left values ``lv`` in ``[lmin, lmax]`` and right values
-    ``rv`` in ``[rmin, rmax]`` (as :func:`.aggregate._bt_costs`)."""
+    ``rv`` in ``[rmin, rmax]``: ``min(max(0, lv - rmax, rmin - lv), max(0, rv - lmax,
+    lmin - rv))``."""
     d_l = vmax(b, zero, vmax(b, b.fsub(lv, rmax), b.fsub(rmin, lv)))
     d_r = vmax(b, zero, vmax(b, b.fsub(rv, lmax), b.fsub(lmin, rv)))
     return {6: vmin(b, d_l, d_r)}
@@ -273,8 +286,8 @@ def _start_lane(d, lane, before, first, rbest):
 @njit(cache=True, inline="always")
 def _step(d, prev, cur, nxt, pen_l, rew, pen_r, rbest, slant, run):
     """Nodes of the next right pixel from the current (``cur``) and previous (``prev``) ones;
-    the same operations, in the same order, as one step of :func:`.aggregate._forward`,
-    whose running minimum over ``k`` (left occlusions) is ``run`` here, one per lane."""
+    the same operations, in the same order, as one step of the one-row programme, whose
+    running minimum over ``k`` (left occlusions) is ``run`` here, one per lane."""
     inf = np.float32(INF)
     for lane in range(LANES):
         run[lane] = inf
@@ -318,7 +331,7 @@ def lane_backtrack(bounds, rx, ry, dmin, q, geo, phi, pen_l, rew, pen_r, slant, 
 
 @njit(cache=True, inline="always")
 def _walk(cost, ny, phi, pen_l, rew, pen_r, slant, nx, match):
-    """:func:`.aggregate._backtrack` on one lane, in the row's local coordinates: ``cost``
+    """The backtrack of one lane (module doc), in the row's local coordinates: ``cost``
     the arguments of :func:`_node_cost` after the node, ``phi`` padded as there, ``pen_r[y]``
     the right-occlusion penalty after right pixel ``y``. Same tests in the same order (the
     same tie-breaking)."""
