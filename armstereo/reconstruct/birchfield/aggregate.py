@@ -39,6 +39,7 @@ from armstereo.reconstruct.birchfield.lanes import (
     GEO,
     LANES,
     SLANT,
+    image_bounds,
     lane_backtrack,
     lane_forward,
     lane_setup,
@@ -84,10 +85,12 @@ def match_image_aggregated(left: np.ndarray, right: np.ndarray, lmask: np.ndarra
     out = dict(disp=np.empty((H, W), np.int32), state=np.empty((H, W), np.uint8))
     if textured is None:
         textured = np.ones((H, W), np.bool_)
-    images = (left[:, :, None], right[:, :, None], fill_outside(left, lmask),
-              fill_outside(right, rmask), lmask, rmask, np.ascontiguousarray(textured, np.bool_))
-    params = (dmin, nd, rx, ry, q, _scaled_penalties(occ, rew, slant, npix, q))
     starts = range(0, H, LANES)
+    bounds = np.empty((6, W, starts[-1] + _vector_rows(ry)), np.float32)
+    image_bounds(fill_outside(left, lmask), fill_outside(right, rmask), ry, bounds)
+    images = (left[:, :, None], right[:, :, None], bounds, lmask, rmask,
+              np.ascontiguousarray(textured, np.bool_))
+    params = (dmin, nd, rx, ry, q, _scaled_penalties(occ, rew, slant, npix, q))
     n = max(1, min(len(starts), threads))
     cuts = np.linspace(0, len(starts), n + 1).round().astype(int)
     jobs = [starts[cuts[i]:cuts[i + 1]] for i in range(n)]
@@ -111,34 +114,38 @@ def _scaled_penalties(occ: int, rew: int, slant: int, npix: int, q: int) -> np.n
 
 def _match_blocks(starts: range, images: tuple, params: tuple, out: dict) -> None:
     """Match the blocks of rows beginning at ``starts`` (the kernels release the GIL)."""
-    left3, right3, fl, fr, lmask, rmask, textured = images
+    left3, right3, bounds, lmask, rmask, textured = images
     dmin, nd, rx, ry, q, pens = params
     disp, state = out["disp"], out["state"]
     geo, pen_l, rew, pen_r, flags, costs, phi, rbest, run, ints, sloc = _lane_work(
-        fl.shape[1], nd, rx, ry)
+        bounds, nd, rx, ry)
     slant = pens[SLANT]
     for row0 in starts:
         x_begin, x_end = lane_setup(left3, right3, lmask, rmask, textured, row0, dmin, nd, pens,
                                     disp, state, geo, pen_l, rew, pen_r, flags)
         if x_end <= x_begin:
             continue
-        lane_forward(fl, fr, row0, rx, ry, dmin, q, geo, x_begin, x_end, pen_l, rew, pen_r,
-                     slant, costs, phi, rbest, run)
-        lane_backtrack(costs[0], rx, ry, dmin, q, geo, phi, pen_l, rew, pen_r, slant, row0,
+        lane_forward(row0, rx, ry, dmin, q, geo, x_begin, x_end, pen_l, rew, pen_r, slant,
+                     costs, phi, rbest, run)
+        lane_backtrack(bounds, rx, ry, dmin, q, geo, phi, pen_l, rew, pen_r, slant, row0,
                        ints, sloc, disp, state)
 
 
-def _lane_work(W: int, nd: int, rx: int, ry: int) -> tuple:
+def _vector_rows(ry: int) -> int:
+    """Rows of a block and its window, in whole vectors of :data:`.lanes.LANES`."""
+    return -(-(LANES + 2 * ry) // LANES) * LANES
+
+
+def _lane_work(bounds: np.ndarray, nd: int, rx: int, ry: int) -> tuple:
     """Work arrays of one thread, allocated here rather than in the kernels: every array type
     a kernel creates compiles its own allocation code (numba's cold start).
 
     ``(geo, pen_l, rew, pen_r, flags, costs, phi, rbest, run, ints, sloc)`` as the kernels
-    of :mod:`.lanes` name them, ``costs`` = ``(bounds, col, lims, ring, d)``; ``phi`` starts
-    INF (its padding stays so).
+    of :mod:`.lanes` name them, ``costs`` = ``(bounds, col, lims, ring, d)`` (``bounds``
+    shared by the threads); ``phi`` starts INF (its padding stays so).
     """
-    f32, L = np.float32, LANES
-    nj = -(-(L + 2 * ry) // L) * L  # rows of the block and its window, in whole vectors
-    costs = (np.zeros((6, W, nj), f32), np.empty((nd, nj), f32), np.empty((2, L), f32),
+    f32, L, W = np.float32, LANES, bounds.shape[1]
+    costs = (bounds, np.empty((nd, _vector_rows(ry)), f32), np.empty((2, L), f32),
              np.empty((2 * rx + 1, nd, L), f32), np.empty((2, nd, L), f32))
     return (np.zeros((GEO, L), np.int64), np.empty((W + nd + 2, L), f32),
             np.empty((W + nd + 2, L), f32), np.empty((W, L), f32), np.empty((2, W), np.bool_),

@@ -113,25 +113,30 @@ def _lane_penalties(left3, right3, textured, g, dmin, nd, pens, lane, pen_l, rew
 
 
 @njit(cache=True, nogil=True, fastmath=True)
-def lane_forward(left, right, row0, rx, ry, dmin, q, geo, x_begin, x_end, pen_l, rew, pen_r,
-                 slant, costs, phi, rbest, run):
+def lane_forward(row0, rx, ry, dmin, q, geo, x_begin, x_end, pen_l, rew, pen_r, slant, costs,
+                 phi, rbest, run):
     """The forward pass of the programme (module doc) for every lane in lockstep, on node
     costs computed as it goes (:func:`_node_costs`): an image's worth of them, per lane, would
     not stay in the cache between two passes.
 
-    ``left``/``right``: (H, W) uint8 filled grey images. Node ``(x, k)`` of a lane is
+    Node ``(x, k)`` of a lane is
     ``phi[x + 1, k + 1, lane]`` (row 0 and columns 0 and ``nd + 1`` stay INF);
     ``rbest[u, lane]``: the running minimum of right-occlusion costs into shifted left pixel
     ``u``; ``run`` (LANES,) float32 scratch. ``slant``: the scaled one-pixel-jump penalty
-    (INF: none). ``costs``: the work arrays of :func:`_block_costs`.
+    (INF: none). ``costs``: ``(bounds, col, lims, ring, d)``, the image's BT intervals
+    (:func:`image_bounds`) and work arrays: ``col`` (nd, nj), ``lims`` (2, LANES), ``ring``
+    (2 rx + 1, nd, LANES), ``d`` (2, nd, LANES) float32.
     """
     nd = phi.shape[1] - 2
     inf = np.float32(INF)
     bounds, col, lims, ring, d = costs
-    _block_bounds(left, right, row0 - ry, ry, geo, bounds, lims)
+    for lane in range(LANES):  # float32 copies, for comparing in float32 vectors
+        lims[0, lane] = geo[X0, lane]
+        lims[1, lane] = geo[U1, lane]
+    b = (bounds, row0)
     for c in range(x_begin - rx, x_begin + rx):
-        _column_sums(bounds, c, dmin, ry, col, ring)
-    _node_costs(bounds, x_begin, rx, ry, dmin, q, lims, col, ring, d[x_begin % 2])
+        _column_sums(b, c, dmin, ry, col, ring)
+    _node_costs(b, x_begin, rx, ry, dmin, q, lims, col, ring, d[x_begin % 2])
     for u in range(x_begin, x_end + nd):
         for lane in range(LANES):
             rbest[u, lane] = inf
@@ -142,37 +147,27 @@ def lane_forward(left, right, row0, rx, ry, dmin, q, geo, x_begin, x_end, pen_l,
                 _start_lane(here, lane, phi[x], phi[x + 1], rbest[x:x + nd])
         if x + 1 < x_end:
             there = d[(x + 1) % 2]
-            _node_costs(bounds, x + 1, rx, ry, dmin, q, lims, col, ring, there)
+            _node_costs(b, x + 1, rx, ry, dmin, q, lims, col, ring, there)
             _step(there, phi[x], phi[x + 1], phi[x + 2], pen_l[x + 1:x + 1 + nd],
                   rew[x + 1:x + 1 + nd], pen_r[x], rbest[x:x + nd], slant, run)
 
 
 @njit(cache=True, inline="always")
-def _block_bounds(left, right, top, ry, geo, bounds, lims):
-    """The block's BT intervals (:func:`_lane_bounds`) and its lanes' ``x0``/``u1`` as
-    float32 (``lims``), to compare in float32 vectors."""
-    _lane_bounds(left, right, top, ry, bounds)
-    for lane in range(LANES):
-        lims[0, lane] = geo[X0, lane]
-        lims[1, lane] = geo[U1, lane]
-
-
-@njit(cache=True, inline="always")
-def _column_sums(bounds, c, dmin, ry, col, ring):
+def _column_sums(b, c, dmin, ry, col, ring):
     """BT dissimilarities of right column ``c`` (clamped to the image) summed over each
     lane's rows (:func:`_vertical_sums`), into ``ring[c mod len(ring)]``."""
-    W = bounds.shape[1]
-    _vertical_sums(bounds, min(W - 1, max(0, c)), dmin, ry, col, ring[c % ring.shape[0]])
+    W = b[0].shape[1]
+    _vertical_sums(b, min(W - 1, max(0, c)), dmin, ry, col, ring[c % ring.shape[0]])
 
 
 @njit(cache=True, inline="always")
-def _node_costs(bounds, x, rx, ry, dmin, q, lims, col, ring, out):
+def _node_costs(b, x, rx, ry, dmin, q, lims, col, ring, out):
     """Node costs of right pixel ``x``, ``out[k, lane]``: the BT dissimilarities summed over
     the ``(2 ry + 1) x (2 rx + 1)`` window (rows and columns clamped to the image), divided by
     ``q`` (floor), INF where ``x + k`` is outside the lane's ``[x0, u1)``. ``ring`` holds the
     column sums of ``x - rx - 1 .. x + rx - 1`` on entry, of ``x - rx .. x + rx`` on return.
     Every sum is of integers below float32's exact range, so its order does not change it."""
-    _column_sums(bounds, x + rx, dmin, ry, col, ring)
+    _column_sums(b, x + rx, dmin, ry, col, ring)
     for k in range(out.shape[0]):
         _copy(((ring, 0, k, 0), (out, k, 0)), ())
         for s in range(1, ring.shape[0]):
@@ -180,44 +175,46 @@ def _node_costs(bounds, x, rx, ry, dmin, q, lims, col, ring, out):
     _finish(out, x, lims, q)
 
 
-@njit(cache=True, inline="always")
-def _lane_bounds(left, right, top, ry, bounds):
-    """Doubled value and min/max of the half-samples (BT intervals, :mod:`.cost`) of image
-    rows ``top .. top + LANES + 2 ry - 1`` (clamped), row ``j`` of the block in column ``j``:
-    ``bounds[0..2]`` left, ``bounds[3..5]`` right."""
-    H = left.shape[0]
-    for j in range(LANES + 2 * ry):  # the columns after these only pad the last vector
-        r = min(H - 1, max(0, top + j))
-        _row_bounds(left[r], j, bounds[0], bounds[1], bounds[2])
-        _row_bounds(right[r], j, bounds[3], bounds[4], bounds[5])
+@njit(cache=True, nogil=True)
+def image_bounds(left, right, ry, bounds):
+    """Doubled value and min/max of the half-samples (BT intervals, :mod:`.cost`) of every
+    pixel of the (H, W) uint8 filled grey images, transposed so that a block's rows are
+    contiguous: ``bounds[i, x, j]`` for image row ``j - ry`` (clamped to the image; columns
+    past ``H + 2 ry`` pad the last block's vectors), ``i`` 0..2 left, 3..5 right."""
+    H, W = left.shape
+    for x in range(W):  # row index innermost: the writes are contiguous
+        xa, xb = max(0, x - 1), min(W - 1, x + 1)
+        for j in range(bounds.shape[2]):
+            r = min(H - 1, max(0, j - ry))
+            _interval(left[r], x, xa, xb, bounds, 0, j)
+            _interval(right[r], x, xa, xb, bounds, 3, j)
 
 
 @njit(cache=True, inline="always")
-def _row_bounds(row, j, v, vmin, vmax):
-    W = row.shape[0]
-    for x in range(W):
-        a = 2 * np.float32(row[x])
-        p = np.float32(row[max(0, x - 1)]) + np.float32(row[x])
-        n = np.float32(row[x]) + np.float32(row[min(W - 1, x + 1)])
-        v[x, j] = a
-        vmin[x, j] = min(a, min(p, n))
-        vmax[x, j] = max(a, max(p, n))
+def _interval(row, x, xa, xb, bounds, i, j):
+    a = 2 * np.float32(row[x])
+    p = np.float32(row[xa]) + np.float32(row[x])
+    n = np.float32(row[x]) + np.float32(row[xb])
+    bounds[i, x, j] = a
+    bounds[i + 1, x, j] = min(a, min(p, n))
+    bounds[i + 2, x, j] = max(a, max(p, n))
 
 
 @njit(cache=True, inline="always")
-def _vertical_sums(bounds, x, dmin, ry, col, out):
+def _vertical_sums(bj, x, dmin, ry, col, out):
     """``out[k, lane]``: BT dissimilarity of right pixel ``x`` and left pixel ``x + dmin + k``
     (the last column past the right edge) summed over the ``2 ry + 1`` rows around the lane;
+    ``bj``: the image's intervals and the block's first column in them;
     ``col`` (nd, nj) is scratch. Two passes: a vector load across two recent stores waits for
     them to reach the cache, so the rows are all stored before the shifted loads begin."""
-    W = bounds.shape[1]
+    b, j0 = bj
+    W = b.shape[1]
     zero = np.float32(0.0)
-    b = bounds
-    for j in range(0, col.shape[1], LANES):  # k inner: the right pixel's loads stay put
+    for j in range(j0, j0 + col.shape[1], LANES):  # k inner: the right pixel's loads stay put
         for k in range(out.shape[0]):
             u = min(W - 1, x + dmin + k)
             _bt(((b, 0, u, j), (b, 1, u, j), (b, 2, u, j), (b, 3, x, j), (b, 4, x, j),
-                 (b, 5, x, j), (col, k, j)), (zero,))
+                 (b, 5, x, j), (col, k, j - j0)), (zero,))
     for k in range(out.shape[0]):
         _copy(((col, k, 0), (out, k, 0)), ())
         for t in range(1, 2 * ry + 1):
@@ -313,15 +310,15 @@ def _node_update(b, c0, c1, p2, dk, pl, rw, rb, pr, run, out, slant, inf):
 def lane_backtrack(bounds, rx, ry, dmin, q, geo, phi, pen_l, rew, pen_r, slant, row0, ints,
                    sloc, disp, state):
     """Walk back each active lane's path (:func:`_walk`) and decode it into its output row.
-    ``bounds``: the block's BT intervals as :func:`lane_forward` left them; ``ints`` (2, W)
-    int32 and ``sloc`` (W,) uint8 are scratch."""
+    ``bounds``: the image's BT intervals (:func:`image_bounds`); ``ints`` (2, W) int32 and
+    ``sloc`` (W,) uint8 are scratch."""
     match, dloc = ints[0], ints[1]
     for lane in range(LANES):
         if not geo[ACTIVE, lane]:
             continue
         r0, r1, x0, u1 = geo[R0, lane], geo[R1, lane], geo[X0, lane], geo[U1, lane]
         nx = u1 - r0
-        cost = (bounds, lane, r0, rx, ry, dmin, q)
+        cost = (bounds, row0 + lane, r0, rx, ry, dmin, q)
         if _walk(cost, r1 - r0, phi[r0:, :, lane], pen_l[r0:, lane], rew[r0:, lane],
                  pen_r[r0:, lane], slant, nx, match[:nx]):
             r = row0 + lane
@@ -390,16 +387,16 @@ def _walk(cost, ny, phi, pen_l, rew, pen_r, slant, nx, match):
 @njit(cache=True, inline="always")
 def _node_cost(y, k, cost):
     """The cost of node ``(r0 + y, k)`` of ``lane``, as :func:`_node_costs` computes it (the
-    same integer: only the order of the sum differs); ``cost``: ``(bounds, lane, r0, rx, ry,
-    dmin, q)``."""
-    bounds, lane, r0, rx, ry, dmin, q = cost
+    same integer: only the order of the sum differs); ``cost``: ``(bounds, row, r0, rx, ry,
+    dmin, q)``, ``row`` the lane's image row."""
+    bounds, row, r0, rx, ry, dmin, q = cost
     W = bounds.shape[1]
     zero = np.float32(0.0)
     total = zero
     for dx in range(-rx, rx + 1):
         c = min(W - 1, max(0, r0 + y + dx))
         u = min(W - 1, c + dmin + k)
-        for j in range(lane, lane + 2 * ry + 1):
+        for j in range(row, row + 2 * ry + 1):
             b, a = bounds[0, u, j], bounds[3, c, j]
             total += min(max(zero, max(b - bounds[5, c, j], bounds[4, c, j] - b)),
                          max(zero, max(a - bounds[2, u, j], bounds[1, u, j] - a)))
