@@ -160,7 +160,7 @@ def _column_sums(b, c, dmin, ry, col, ring):
     _vertical_sums(b, min(W - 1, max(0, c)), dmin, ry, col, ring[c % ring.shape[0]])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inner=True)
 def _node_costs(b, x, rx, ry, dmin, q, lims, col, ring, out):
     """Node costs of right pixel ``x``, ``out[k, lane]``: the BT dissimilarities summed over
     the ``(2 ry + 1) x (2 rx + 1)`` window (rows and columns clamped to the image), divided by
@@ -200,7 +200,7 @@ def _interval(row, x, xa, xb, bounds, i, j):
     bounds[i + 2, x, j] = max(a, max(p, n))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inner=True)
 def _vertical_sums(bj, x, dmin, ry, col, out):
     """``out[k, lane]``: BT dissimilarity of right pixel ``x`` and left pixel ``x + dmin + k``
     (the last column past the right edge) summed over the ``2 ry + 1`` rows around the lane;
@@ -326,7 +326,7 @@ def lane_backtrack(bounds, rx, ry, dmin, q, geo, phi, pen_l, rew, pen_r, slant, 
                        disp[r], state[r])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inner=True)
 def _walk(cost, ny, phi, pen_l, rew, pen_r, slant, nx, match):
     """The backtrack of one lane (module doc), in the row's local coordinates: ``cost``
     the arguments of :func:`_node_cost` after the node, ``phi`` padded as there, ``pen_r[y]``
