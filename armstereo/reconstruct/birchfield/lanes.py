@@ -79,22 +79,27 @@ def lane_setup(left3, right3, lmask, rmask, textured, row0, dmin, nd, pens, disp
                                                     state[r])
         if r1 <= r0 or u1 <= x0:
             continue
-        g = geo[:, lane]
-        g[LA], g[LB], g[R0], g[R1], g[X0], g[U1], g[RA], g[RB] = la, lb, r0, r1, x0, u1, ra, rb
-        g[ACTIVE] = 1
+        _set_geometry(geo, lane, la, lb, r0, r1, x0, u1, ra, rb)
         x_begin, x_end = min(x_begin, r0), max(x_end, r1)
-        _lane_penalties(left3[r], right3[r], textured[r], g, dmin, nd, pens, lane, pen_l, rew,
+        _lane_penalties(left3[r], right3[r], textured[r], geo, dmin, nd, pens, lane, pen_l, rew,
                         pen_r, flags[0], flags[1])
     return x_begin, x_end
 
 
 @njit(cache=True, inline="always")
-def _lane_penalties(left3, right3, textured, g, dmin, nd, pens, lane, pen_l, rew, pen_r, gl,
+def _set_geometry(geo, lane, la, lb, r0, r1, x0, u1, ra, rb):
+    geo[LA, lane], geo[LB, lane], geo[RA, lane], geo[RB, lane] = la, lb, ra, rb
+    geo[R0, lane], geo[R1, lane], geo[X0, lane], geo[U1, lane] = r0, r1, x0, u1
+    geo[ACTIVE, lane] = 1
+
+
+@njit(cache=True, inner=True)
+def _lane_penalties(left3, right3, textured, geo, dmin, nd, pens, lane, pen_l, rew, pen_r, gl,
                     gr):
     """One lane's penalties and rewards (local left pixel ``i`` is shifted left pixel
     ``r0 + i``): a left occlusion costs ``occ`` next to intensity variation, ``occ + novar``
     elsewhere and past the row's left pixels; only textured left pixels earn the reward."""
-    r0, r1, x0, u1 = g[R0], g[R1], g[X0], g[U1]
+    r0, r1, x0, u1 = geo[R0, lane], geo[R1, lane], geo[X0, lane], geo[U1, lane]
     nx, x_lo = u1 - r0, x0 - r0
     occ_s, rew_s, novar = pens[OCC], pens[REW], pens[NOVAR]
     # np.int64/np.bool_: plain constants would be typed as literals, and each literal value
@@ -102,9 +107,10 @@ def _lane_penalties(left3, right3, textured, g, dmin, nd, pens, lane, pen_l, rew
     threshold, zero = np.int64(VARIATION_THRESHOLD), np.int64(0)
     for x in range(gl.shape[0]):
         gl[x] = False
-    variation_flags(left3, g[LA], g[LB], x0 + dmin, u1 + dmin, threshold, np.bool_(True), gl,
-                    x_lo)
-    variation_flags(right3, g[RA], g[RB], r0, r1, threshold, np.bool_(False), gr, zero)
+    variation_flags(left3, geo[LA, lane], geo[LB, lane], x0 + dmin, u1 + dmin, threshold,
+                    np.bool_(True), gl, x_lo)
+    variation_flags(right3, geo[RA, lane], geo[RB, lane], r0, r1, threshold, np.bool_(False),
+                    gr, zero)
     for i in range(nx + nd + 1):
         pen_l[r0 + i, lane] = occ_s if i < nx and gl[i] else occ_s + novar
         rew[r0 + i, lane] = rew_s if i < nx and textured[r0 + dmin + i] else np.float32(0.0)
