@@ -45,6 +45,14 @@ from armstereo.reconstruct.birchfield.lanes import (
     lane_setup,
 )
 
+# the one-row kernels, re-exported for the matchers that import them from here (.vertical)
+from armstereo.reconstruct.birchfield.rows import (  # noqa: F401, E402
+    _backtrack,
+    _forward,
+    _row_slab,
+    _work_arrays,
+)
+
 SUB_R = 2  # sub-pixel window radius
 
 
