@@ -1,0 +1,91 @@
+"""Where birchfield()'s time goes: its scanline matcher against the rest, and SGBM, per pair.
+
+One thread each (numba and OpenCV), process CPU time of the calling thread (steadier than wall
+time on a shared machine), median of ``--repeats`` runs after a warm-up, the peers interleaved
+run by run. The matcher's share is the time spent in
+``armstereo.reconstruct.birchfield.aggregate.match_image_aggregated`` during the call; the
+rest is sub-pixel refinement and postprocessing. Pairs: the Middlebury pairs of tests/data,
+with the disparity window of bench/stereo.py.
+
+To compare two source trees, run the script once per tree with it first on the path:
+``PYTHONPATH=TREE .venv/bin/python bench/dp_lanes.py`` (the script reads the pairs from this
+checkout).
+
+    .venv/bin/python bench/dp_lanes.py [--repeats 7]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import time
+from pathlib import Path
+
+import cv2
+import numba
+
+import armstereo
+import armstereo.reconstruct.stereo as stereo
+
+MIDDLEBURY = Path(__file__).resolve().parents[1] / "tests" / "data" / "middlebury"
+PAIRS = ("tsukuba", "venus", "teddy", "cones")
+
+
+class MatchClock:
+    """Wraps stereo's matcher entry point and adds up the thread CPU time spent in it."""
+
+    def __init__(self) -> None:
+        self.inner = stereo.match_image_aggregated
+        self.total = 0.0
+
+    def __call__(self, *args, **kwargs):
+        start = time.thread_time()
+        try:
+            return self.inner(*args, **kwargs)
+        finally:
+            self.total += time.thread_time() - start
+
+
+def measure(name: str, clock: MatchClock, repeats: int) -> dict[str, float]:
+    meta = json.loads((MIDDLEBURY / name / "meta.json").read_text())
+    left = cv2.imread(str(MIDDLEBURY / name / meta["left"]))
+    right = cv2.imread(str(MIDDLEBURY / name / meta["right"]))
+    max_d = -(-(meta["max_disp"] + 1) // 16) * 16 - 1  # SGBM's multiple of 16, as stereo.py
+    runs: dict[str, list[float]] = {"birchfield": [], "match": [], "sgbm": []}
+    for i in range(repeats + 1):  # the first run warms up (and compiles)
+        clock.total = 0.0
+        start = time.thread_time()
+        stereo.birchfield(left, right, max_d, threads=1)
+        whole, match = time.thread_time() - start, clock.total
+        start = time.thread_time()
+        stereo.sgbm(left, right, max_d)
+        if i:
+            runs["birchfield"].append(whole)
+            runs["match"].append(match)
+            runs["sgbm"].append(time.thread_time() - start)
+    return {key: 1000 * statistics.median(v) for key, v in runs.items()}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=7)
+    args = parser.parse_args(argv)
+    numba.set_num_threads(1)
+    cv2.setNumThreads(1)
+    clock = MatchClock()
+    stereo.match_image_aggregated = clock
+    print(f"armstereo from {Path(armstereo.__file__).parent}; ms of thread CPU, median of "
+          f"{args.repeats}")
+    print("| pair | birchfield() | its matcher | the rest | SGBM | matcher / SGBM |")
+    print("|---|---|---|---|---|---|")
+    for name in PAIRS:
+        t = measure(name, clock, args.repeats)
+        print(f"| {name} | {t['birchfield']:.1f} | {t['match']:.1f} | "
+              f"{t['birchfield'] - t['match']:.1f} | {t['sgbm']:.1f} | "
+              f"{t['match'] / t['sgbm']:.2f} |")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
