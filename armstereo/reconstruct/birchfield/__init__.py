@@ -8,7 +8,12 @@ Modules, in the order the matcher uses them:
   default);
 - :mod:`.dp_pruned`: the reference code's pruned search of the same programme, its decoding and
   the constants both solvers share;
-- :mod:`.matcher`: all rows of an image pair (on threads), masks and disparity window;
+- :mod:`.matcher`: all rows of an image pair (on threads), masks and disparity window, for
+  the paper's single-pixel costs;
+- :mod:`.aggregate`: the default matcher on window-summed costs with slant steps, driving
+  :mod:`.lanes` (blocks of rows in lockstep, rows as the SIMD axis via :mod:`.simd`);
+- :mod:`.rows`: the same programme one row at a time, used by :mod:`.vertical` (the
+  ``column_smoothing`` option: costs smoothed along the columns first);
 - :mod:`.postprocess`: the paper's propagation across scanlines and mode filters;
 - :mod:`.refine`: options beyond the paper (subpixel, left-right check).
 

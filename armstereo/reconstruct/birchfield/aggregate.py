@@ -66,12 +66,17 @@ def cost_divisor(width: int, window_pixels: int, occ: int) -> int:
 def fill_outside(grey: np.ndarray, mask: np.ndarray) -> np.ndarray:
     """Copy of an (H, W) image whose pixels left/right of each row's valid span repeat the
     span's edge pixels (so window sums near a mask edge see plausible values, not black)."""
+    if mask.all():  # nothing outside (no rectification fill)
+        return grey.copy()
     H, W = grey.shape
     has = mask.any(axis=1)
-    a = np.where(has, np.argmax(mask, axis=1), 0)
-    b = np.where(has, W - 1 - np.argmax(mask[:, ::-1], axis=1), W - 1)
-    cols = np.clip(np.arange(W)[None, :], a[:, None], b[:, None])
-    return np.ascontiguousarray(np.take_along_axis(grey, cols, axis=1))
+    a = np.where(has, np.argmax(mask, axis=1), 0)[:, None]
+    b = np.where(has, W - 1 - np.argmax(mask[:, ::-1], axis=1), W - 1)[:, None]
+    rows, cols = np.arange(H)[:, None], np.arange(W)
+    # two selects rather than a gather of every pixel (take_along_axis): 3-4 ms -> 0.1 ms
+    out = np.where(cols < a, grey[rows, a], grey)
+    np.copyto(out, grey[rows, b], where=cols > b)
+    return out
 
 
 def match_image_aggregated(left: np.ndarray, right: np.ndarray, lmask: np.ndarray,
