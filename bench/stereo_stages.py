@@ -48,7 +48,11 @@ STAGES = [
     ("stereo", "_match", "match setup (stereo.py)"),
     ("aggregate", "match_image_aggregated", "match setup (aggregate.py)"),
     ("aggregate", "fill_outside", "fill_outside (aggregate.py)"),
-    ("aggregate", "match_block", "DP: match_block"),
+    ("aggregate", "match_block", "DP kernels"),  # before the lane kernels
+    ("aggregate", "image_bounds", "DP kernels"),
+    ("aggregate", "lane_setup", "DP kernels"),
+    ("aggregate", "lane_forward", "DP kernels"),
+    ("aggregate", "lane_backtrack", "DP kernels"),
     ("stereo", "_gradient_step", "sub-pixel: fast"),
     ("stereo", "_median", "median"),
     ("stereo", "_unsupported", "unsupported flat pixels"),
@@ -57,12 +61,15 @@ STAGES = [
     ("stereo", "_photo_inconsistent", "photo check"),
     ("stereo", "refine_gradient", "sub-pixel: gradient"),
     ("stereo", "refine_parabola", "sub-pixel: parabola"),
+    ("stereo", "_flat_rejected", "unsupported flat pixels"),
+    ("stereo", "_replace_outliers", "consensus median"),
+    ("stereo", "_reject", "reject (NaN bookkeeping)"),
     ("stereo", "_remove_speckles", "speckles"),
     ("stereo", "_clip_to_window", "clip to window"),
     ("stereo", "_reject_invalid_partners", "invalid partners"),
     ("stereo", "birchfield", "rest of birchfield()"),
 ]
-DP = "DP: match_block"
+DP = "DP kernels"
 SUBPIXEL = "sub-pixel: fast"
 TOTAL = "total birchfield()"
 SGBM = "StereoSGBM"
