@@ -11,7 +11,8 @@ top of the sphere (elevation 90 deg, where "down" is the optical axis) y points 
 target horizontally along the viewpoint's azimuth. Azimuth is measured about base z from base
 +x, elevation above the target's horizontal plane. Where the wrist cannot reach that
 orientation, the camera may be rolled about its optical axis (``ROLLS_DEG``); the kept roll is
-the one whose joints are nearest the start joints.
+the one whose joints are nearest the start joints among those keeping the baseline level (0 or
+180 deg), a quarter turn only where neither level roll is reachable.
 
 Layouts (``parse_views``):
 
@@ -56,6 +57,11 @@ FORBIDDEN_LEG_RAD = 1e3  # extra cost of a leg the tour's pre-flight refused
 # Camera rolls about the optical axis tried per viewpoint (deg): the wrist reaches some
 # viewpoints only with the image turned; the baseline stays along the (turned) camera x.
 ROLLS_DEG = (0.0, 180.0, 90.0, -90.0)
+# Rolls that keep the baseline horizontal (camera x level). At +-90 deg the baseline runs up
+# the elevation arc: the views differ in elevation, so walls and tops are foreshortened
+# differently in the two images and the row-wise matcher loses most of every wall facing the
+# pair (bench/results/fused_footprint.md: four of the twelve ring views lost a crate wall).
+LEVEL_ROLLS_DEG = (0.0, 180.0)
 _VIEWS_RE = re.compile(r"^(ring|sphere):(\d+)$|^grid:(\d+)x(\d+)$")
 
 
@@ -263,7 +269,8 @@ def _best_roll(model: ArmModel, q_start: np.ndarray, k: int, az: float, el: floa
                target: np.ndarray, radius: float, baseline: float, s: ScanSettings,
                box: Workspace, solved: list[ScanView]) -> ScanView | _Failure:
     """The viewpoint at the camera roll (of ROLLS_DEG) whose left-view joints are nearest the
-    start joints, or the failure of the first roll tried (the upright camera)."""
+    start joints, a level baseline (LEVEL_ROLLS_DEG) first when one is reachable; or the
+    failure of the first roll tried (the upright camera)."""
     best: ScanView | None = None
     first: _Failure | None = None
     for roll in ROLLS_DEG:
@@ -274,13 +281,17 @@ def _best_roll(model: ArmModel, q_start: np.ndarray, k: int, az: float, el: floa
             first = first or result
             continue
         view = ScanView(k, math.degrees(az), math.degrees(el), float(roll), T, *result)
-        if best is None or (_joint_distance(view.q_left, q_start)
-                            < _joint_distance(best.q_left, q_start)):
+        if best is None or _roll_rank(view, q_start) < _roll_rank(best, q_start):
             best = view
     if best is not None:
         return best
     rolls = ", ".join(f"{r:.0f}" for r in ROLLS_DEG)
     return _Failure(first.check, f"no camera roll ({rolls} deg) works; upright: {first.reason}")
+
+
+def _roll_rank(view: ScanView, q_start: np.ndarray) -> tuple[bool, float]:
+    """Sort key of a reachable roll: a level baseline first, then the joints nearest start."""
+    return view.roll_deg not in LEVEL_ROLLS_DEG, _joint_distance(view.q_left, q_start)
 
 
 def _check_viewpoint(model: ArmModel, q_start: np.ndarray, T_cam: np.ndarray,

@@ -46,7 +46,13 @@ log = logging.getLogger(__name__)
 
 DEFAULT_VOXEL_M = 0.002
 TRUNC_VOXELS = 4  # default truncation: 4 voxels (8 mm at 2 mm), about 3 sigma of stereo noise
-SUPPORT_TOLERANCE_TRUNC = 0.5  # a pair "sees" a vertex within half the truncation distance
+# Behind an observed surface only half the truncation is updated, and a pair "sees" a vertex
+# within a quarter of it (one voxel by default): with the whole truncation behind and half of
+# it as the tolerance, the fused top of a box grew a lip over its edges that the pairs looking
+# across the top confirmed, and the fused cloud's footprints came out 4-8 mm too wide
+# (bench/results/fused_footprint.md).
+BEHIND_TRUNC = 0.5
+SUPPORT_TOLERANCE_TRUNC = 0.25
 DEFAULT_MIN_VIEWS = 2
 RAW_POINTS_PER_PAIR = 30_000  # raw points kept per pair (random subset): ROI and raw scoring
 METADATA_SCENE_TRUTH = "scene_truth"
@@ -81,6 +87,11 @@ class FusionOptions:
     @property
     def trunc_m(self) -> float:
         return self.trunc if self.trunc is not None else TRUNC_VOXELS * self.voxel
+
+    @property
+    def behind_m(self) -> float:
+        """How far behind an observed surface the TSDF is updated (m; at least a voxel)."""
+        return max(self.voxel, BEHIND_TRUNC * self.trunc_m)
 
 
 @dataclass(frozen=True)
@@ -139,7 +150,8 @@ def fuse_recording(recording: str | Path, out_dir: str | Path,
     with _timed(timings, "roi"):
         roi, roi_source = _region(options, results)
         check_roi_seen(roi, frames)
-    volume = TsdfVolume(roi, options.voxel, options.trunc_m, interpolation=options.interpolation)
+    volume = TsdfVolume(roi, options.voxel, options.trunc_m, interpolation=options.interpolation,
+                        behind=options.behind_m)
     with _timed(timings, "integrate"):
         updated, integrate_s = _integrate(volume, results, progress)
     with _timed(timings, "extract"):
@@ -359,6 +371,7 @@ def _report(rec: Recording, o: FusionOptions, roi: Roi, roi_source: str, volume:
                 for r, (u, t, s) in zip(results, contributions, strict=True)]
     return {
         "views": len(results), "voxel_m": o.voxel, "trunc_m": o.trunc_m,
+        "behind_m": o.behind_m,
         "roi_m": roi.as_list(), "roi_source": roi_source, "depth_source": o.depth_source,
         "method": o.method if o.depth_source == "stereo" else None, "workers": workers,
         "voxels": volume.voxel_count, "voxel_grid": list(volume.shape),

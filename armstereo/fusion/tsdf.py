@@ -11,8 +11,12 @@ is projected into the image with the OpenCV convention, **pixel centres at integ
 coordinates** (pixel ``u`` covers ``[u - 0.5, u + 0.5)``), the depth there is read (bilinear
 between the four surrounding pixel centres when all four are valid and agree to within
 ``trunc``; the nearest pixel otherwise) and ``sdf = depth - z_voxel`` is truncated to
-``[-trunc, trunc]``. Voxels more than ``trunc`` behind the observed surface are left alone
-(that space is unseen). A half-pixel slip here (taking ``floor(u)`` as the nearest pixel, as
+``[-trunc, trunc]``. Voxels more than ``behind`` (at most ``trunc``) behind the observed
+surface are left alone (that space is unseen). A short ``behind`` band keeps the votes of a
+surface seen from above out of the free space beside the object: with ``behind = trunc`` the
+views looking across a box's top call the space just outside its far wall "inside", and the
+fused top grows a lip 1-3 mm out over every convex edge (bench/results/fused_footprint.md).
+A half-pixel slip here (taking ``floor(u)`` as the nearest pixel, as
 some libraries do for pixel-corner conventions) shifts every surface sideways by half a pixel
 and biases slanted surfaces; ``tests/armstereo/fusion/test_tsdf.py`` measures that.
 
@@ -166,15 +170,22 @@ class TsdfVolume:
     """Dense TSDF over ``roi`` with voxel edge ``voxel`` and truncation ``trunc`` (m).
 
     ``tsdf`` (nx, ny, nz) float32 in [-1, 1], 1 where unobserved; ``weight`` (nx, ny, nz)
-    float32, 0 where unobserved. ``interpolation`` is ``bilinear`` (default) or ``nearest``.
+    float32, 0 where unobserved. ``interpolation`` is ``bilinear`` (default) or ``nearest``;
+    ``behind`` (m, in [voxel, trunc], None = ``trunc``) how far behind an observed surface
+    voxels are updated.
     """
 
     def __init__(self, roi: Roi, voxel: float, trunc: float, *,
-                 interpolation: str = "bilinear", threads: int | None = None):
+                 interpolation: str = "bilinear", threads: int | None = None,
+                 behind: float | None = None):
         if not (math.isfinite(voxel) and voxel > 0):
             raise ConfigError(f"--voxel must be a positive length in metres, got {voxel}")
         if not (math.isfinite(trunc) and trunc >= voxel):
             raise ConfigError(f"--trunc must be at least one voxel ({voxel} m), got {trunc}")
+        behind = trunc if behind is None else behind
+        if not (math.isfinite(behind) and voxel <= behind <= trunc):
+            raise ConfigError(f"the band behind the surface must be in [voxel = {voxel}, "
+                              f"trunc = {trunc}] m, got {behind}")
         if interpolation not in INTERPOLATIONS:
             raise ConfigError(f"interpolation must be one of {', '.join(INTERPOLATIONS)}, "
                               f"got {interpolation!r}")
@@ -185,6 +196,7 @@ class TsdfVolume:
                               f"{n / 1e6:.0f} M voxels (limit {MAX_VOXELS / 1e6:.0f} M); "
                               "use a smaller --roi or a larger --voxel")
         self.roi, self.voxel, self.trunc = roi, float(voxel), float(trunc)
+        self.behind = float(behind)
         self.interpolation = interpolation
         self.threads = max(1, threads or numba.get_num_threads())
         self.origin = np.asarray(roi.lo, dtype=np.float64)
@@ -212,7 +224,7 @@ class TsdfVolume:
         t = np.ascontiguousarray(T[:3, 3])
         K = frame.K
         args = (self.tsdf, self.weight, self.origin, self.voxel, R, t, K[0, 0], K[1, 1],
-                K[0, 2], K[1, 2], frame.depth, self.trunc, float(weight),
+                K[0, 2], K[1, 2], frame.depth, self.trunc, self.behind, float(weight),
                 INTERPOLATIONS[self.interpolation])
         nx = self.shape[0]
         if self.threads == 1:
@@ -266,7 +278,7 @@ def _sample_depth(depth, u, v, trunc, interp):
 
 @njit(nogil=True, cache=True)
 def _integrate_slab(i0, i1, tsdf, weight, origin, voxel, R, t, fx, fy, cx, cy, depth, trunc,
-                    w_obs, interp):
+                    behind, w_obs, interp):
     """Fuse ``depth`` into voxels with x index in [i0, i1); returns the number updated."""
     ny = tsdf.shape[1]
     nz = tsdf.shape[2]
@@ -289,7 +301,7 @@ def _integrate_slab(i0, i1, tsdf, weight, origin, voxel, R, t, fx, fy, cx, cy, d
                 if not (d > 0.0):
                     continue
                 sdf = d - pz
-                if sdf < -trunc:
+                if sdf < -behind:
                     continue
                 val = min(1.0, sdf / trunc)
                 w_old = weight[i, j, k]

@@ -103,6 +103,25 @@ def test_voxels_beyond_the_truncation_band_stay_unseen():
     np.testing.assert_allclose(tsdf[seen], np.clip(z[seen] / 0.01, -1, 1), atol=1e-6)
 
 
+def test_a_shorter_band_behind_the_surface_leaves_the_rest_unseen():
+    roi = Roi((-0.05, -0.05, -0.05), (0.05, 0.05, 0.05))
+    volume = TsdfVolume(roi, 0.005, 0.01, behind=0.005)
+    volume.integrate(_plane_frame())
+    z = volume.voxel_points(np.array([[0, 0, k] for k in range(volume.shape[2])]))[:, 2]
+    seen = volume.weight[10, 10] > 0
+    edge = np.isclose(z, -0.005)
+    assert np.all(seen[(z > -0.005) & ~edge]) and not np.any(seen[(z < -0.005) & ~edge])
+    # values stay in units of the (front) truncation
+    np.testing.assert_allclose(volume.tsdf[10, 10][seen], np.clip(z[seen] / 0.01, -1, 1),
+                               atol=1e-6)
+
+
+@pytest.mark.parametrize("behind", [0.001, 0.02, float("nan")])
+def test_the_band_behind_must_lie_between_a_voxel_and_the_truncation(behind):
+    with pytest.raises(ConfigError, match="behind"):
+        TsdfVolume(ROI, 0.002, 0.008, behind=behind)
+
+
 def test_no_ghost_surface_behind_a_single_view():
     # Behind the band the volume is unobserved; a cube mixing the band's negative values with
     # the unobserved default would put a second sheet at z = -trunc.
