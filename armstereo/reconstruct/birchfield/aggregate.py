@@ -154,13 +154,12 @@ def _lane_work(bounds: np.ndarray, nd: int, rx: int, ry: int) -> tuple:
     a kernel creates compiles its own allocation code (numba's cold start).
 
     ``(geo, pen_l, rew, pen_r, flags, costs, phi, rbest, run, ints, sloc)`` as the kernels
-    of :mod:`.lanes` name them, ``costs`` = ``(bounds, col, lims, ring, d, carry, tag)``
-    (``bounds`` shared by the threads); ``phi`` starts INF (its padding stays so).
+    of :mod:`.lanes` name them, ``costs`` = ``(bounds, col, lims, ring, d)`` (``bounds``
+    shared by the threads); ``phi`` starts INF (its padding stays so).
     """
     f32, L, W = np.float32, LANES, bounds.shape[1]
     costs = (bounds, np.empty((nd, _vector_rows(ry)), f32), np.empty((2, L), f32),
-             np.empty((2 * rx + 1, nd, L), f32), np.empty((2, nd, L), f32),
-             np.empty((W, 2 * ry * nd + L), f32), np.full(W, -1, np.int64))
+             np.empty((2 * rx + 1, nd, L), f32), np.empty((2, nd, L), f32))
     return (np.zeros((GEO, L), np.int64), np.empty((W + nd + 2, L), f32),
             np.empty((W + nd + 2, L), f32), np.empty((W, L), f32), np.empty((2, W), np.bool_),
             costs, np.full((W + 1, nd + 2, L), INF, f32), np.empty((W + nd + 1, L), f32),

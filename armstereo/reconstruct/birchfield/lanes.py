@@ -52,13 +52,6 @@ LA, LB, R0, R1, X0, U1, RA, RB, ACTIVE = range(GEO)
 OCC, REW, NOVAR, SLANT = range(4)  # the scaled penalties in ``pens``
 
 
-@njit(cache=True, inline="always")
-def _skew(ry):
-    """Rows of :func:`image_bounds` above the first window row of block 0: they align every
-    block's rows below its first ``2 ry`` window rows to whole vectors (:func:`_vertical_sums`)."""
-    return (LANES - 2 * ry % LANES) % LANES
-
-
 @njit(cache=True, nogil=True)
 def lane_setup(left3, right3, lmask, rmask, textured, row0, dmin, nd, pens, disp, state, geo,
                pen_l, rew, pen_r, flags):
@@ -138,17 +131,15 @@ def lane_forward(row0, rx, ry, dmin, q, geo, x_begin, x_end, pen_l, rew, pen_r, 
     ``u``; ``run`` (LANES,) float32 scratch. ``slant``: the scaled one-pixel-jump penalty
     (INF: none). ``costs``: ``(bounds, col, lims, ring, d)``, the image's BT intervals
     (:func:`image_bounds`) and work arrays: ``col`` (nd, nj), ``lims`` (2, LANES), ``ring``
-    (2 rx + 1, nd, LANES), ``d`` (2, nd, LANES) float32, and what a block leaves to the next
-    one (:func:`_vertical_sums`): ``carry`` (W, 2 ry nd + LANES) float32, ``tag`` (W,) int64,
-    -1 before a thread's first block.
+    (2 rx + 1, nd, LANES), ``d`` (2, nd, LANES) float32.
     """
     nd = phi.shape[1] - 2
     inf = np.float32(INF)
-    bounds, col, lims, ring, d, carry, tag = costs
+    bounds, col, lims, ring, d = costs
     for lane in range(LANES):  # float32 copies, for comparing in float32 vectors
         lims[0, lane] = geo[X0, lane]
         lims[1, lane] = geo[U1, lane]
-    b = (bounds, row0, carry, tag)
+    b = (bounds, row0)
     for c in range(x_begin - rx, x_begin + rx):
         _column_sums(b, c, dmin, ry, col, ring)
     _node_costs(b, x_begin, rx, ry, dmin, q, lims, col, ring, d[x_begin % 2])
@@ -194,14 +185,13 @@ def _node_costs(b, x, rx, ry, dmin, q, lims, col, ring, out):
 def image_bounds(left, right, ry, bounds):
     """Doubled value and min/max of the half-samples (BT intervals, :mod:`.cost`) of every
     pixel of the (H, W) uint8 filled grey images, transposed so that a block's rows are
-    contiguous: ``bounds[i, x, j]`` for image row ``j - ry - skew`` (:func:`_skew`; clamped
-    to the image; the rows past the image pad the last block's vectors), ``i`` 0..2 left,
-    3..5 right."""
+    contiguous: ``bounds[i, x, j]`` for image row ``j - ry`` (clamped to the image; columns
+    past ``H + 2 ry`` pad the last block's vectors), ``i`` 0..2 left, 3..5 right."""
     H, W = left.shape
     for x in range(W):  # row index innermost: the writes are contiguous
         xa, xb = max(0, x - 1), min(W - 1, x + 1)
         for j in range(bounds.shape[2]):
-            r = min(H - 1, max(0, j - ry - _skew(ry)))
+            r = min(H - 1, max(0, j - ry))
             _interval(left[r], x, xa, xb, bounds, 0, j)
             _interval(right[r], x, xa, xb, bounds, 3, j)
 
@@ -220,38 +210,21 @@ def _interval(row, x, xa, xb, bounds, i, j):
 def _vertical_sums(bj, x, dmin, ry, col, out):
     """``out[k, lane]``: BT dissimilarity of right pixel ``x`` and left pixel ``x + dmin + k``
     (the last column past the right edge) summed over the ``2 ry + 1`` rows around the lane;
-    ``bj``: the image's intervals, the block's first column in them, and the carry (below);
+    ``bj``: the image's intervals and the block's first column in them;
     ``col`` (nd, nj) is scratch. Two passes: a vector load across two recent stores waits for
-    them to reach the cache, so the rows are all stored before the shifted loads begin.
-
-    The block's first ``2 ry`` window rows are the last ``2 ry`` of the block above: the
-    block that computed column ``x`` last leaves them in ``carry[x]`` (``2 ry`` per ``k``)
-    and marks ``tag[x]`` with the block they serve, so a block following its neighbour
-    computes one vector of rows per ``k`` instead of ``(LANES + 2 ry) / LANES`` rounded up.
-    """
-    b, j0, carry, tag = bj
+    them to reach the cache, so the rows are all stored before the shifted loads begin."""
+    b, j0 = bj
     W = b.shape[1]
     zero = np.float32(0.0)
-    h = 2 * ry
-    top = _skew(ry)  # col[k, top + t]: window row t of lane 0; col[k, top + h]: aligned
-    j_new = j0
-    if h > 0 and tag[x] == j0:
-        for k in range(out.shape[0]):
-            for m in range(0, h, LANES):
-                _copy(((carry, x, k * h + m), (col, k, top + m)), ())
-        j_new = j0 + top + h
-    for j in range(j_new, j0 + top + h + LANES, LANES):  # k inner: the right pixel stays put
+    for j in range(j0, j0 + col.shape[1], LANES):  # k inner: the right pixel's loads stay put
         for k in range(out.shape[0]):
             u = min(W - 1, x + dmin + k)
             _bt(((b, 0, u, j), (b, 1, u, j), (b, 2, u, j), (b, 3, x, j), (b, 4, x, j),
                  (b, 5, x, j), (col, k, j - j0)), (zero,))
     for k in range(out.shape[0]):
-        _copy(((col, k, top), (out, k, 0)), ())
-        for t in range(1, h + 1):
-            _add(((col, k, top + t), (out, k, 0)), ())
-        for m in range(0, h, LANES):  # ascending k: each store's tail is overwritten next
-            _copy(((col, k, top + LANES + m), (carry, x, k * h + m)), ())
-    tag[x] = j0 + LANES
+        _copy(((col, k, 0), (out, k, 0)), ())
+        for t in range(1, 2 * ry + 1):
+            _add(((col, k, t), (out, k, 0)), ())
 
 
 @lanewise
@@ -429,7 +402,7 @@ def _node_cost(y, k, cost):
     for dx in range(-rx, rx + 1):
         c = min(W - 1, max(0, r0 + y + dx))
         u = min(W - 1, c + dmin + k)
-        for j in range(row + _skew(ry), row + _skew(ry) + 2 * ry + 1):
+        for j in range(row, row + 2 * ry + 1):
             b, a = bounds[0, u, j], bounds[3, c, j]
             total += min(max(zero, max(b - bounds[5, c, j], bounds[4, c, j] - b)),
                          max(zero, max(a - bounds[2, u, j], bounds[1, u, j] - a)))
