@@ -9,9 +9,10 @@ with the disparity window of bench/stereo.py.
 
 To compare two source trees, run the script once per tree with it first on the path:
 ``PYTHONPATH=TREE .venv/bin/python bench/dp_lanes.py`` (the script reads the pairs from this
-checkout).
+checkout). ``--parts`` also splits the matcher into its kernels (BT intervals of the image,
+per-block setup, forward pass, backtrack; medians, so they need not add up).
 
-    .venv/bin/python bench/dp_lanes.py [--repeats 7]
+    .venv/bin/python bench/dp_lanes.py [--repeats 7] [--parts]
 """
 
 from __future__ import annotations
@@ -26,10 +27,12 @@ import cv2
 import numba
 
 import armstereo
+import armstereo.reconstruct.birchfield.aggregate as aggregate
 import armstereo.reconstruct.stereo as stereo
 
 MIDDLEBURY = Path(__file__).resolve().parents[1] / "tests" / "data" / "middlebury"
 PAIRS = ("tsukuba", "venus", "teddy", "cones")
+KERNELS = ("image_bounds", "lane_setup", "lane_forward", "lane_backtrack")
 
 
 class MatchClock:
@@ -47,14 +50,39 @@ class MatchClock:
             self.total += time.thread_time() - start
 
 
-def measure(name: str, clock: MatchClock, repeats: int) -> dict[str, float]:
+class KernelClocks:
+    """Wraps the matcher's kernels as ``aggregate`` calls them and adds up their thread CPU."""
+
+    def __init__(self) -> None:
+        self.total = dict.fromkeys(KERNELS, 0.0)
+        for name in KERNELS:
+            setattr(aggregate, name, self._timed(name, getattr(aggregate, name)))
+
+    def _timed(self, name, kernel):
+        def timed(*args):
+            start = time.thread_time()
+            try:
+                return kernel(*args)
+            finally:
+                self.total[name] += time.thread_time() - start
+        return timed
+
+    def reset(self) -> None:
+        self.total = dict.fromkeys(KERNELS, 0.0)
+
+
+def measure(name: str, clock: MatchClock, repeats: int,
+            kernels: KernelClocks | None = None) -> dict[str, float]:
     meta = json.loads((MIDDLEBURY / name / "meta.json").read_text())
     left = cv2.imread(str(MIDDLEBURY / name / meta["left"]))
     right = cv2.imread(str(MIDDLEBURY / name / meta["right"]))
     max_d = -(-(meta["max_disp"] + 1) // 16) * 16 - 1  # SGBM's multiple of 16, as stereo.py
     runs: dict[str, list[float]] = {"birchfield": [], "match": [], "sgbm": []}
+    runs.update({k: [] for k in (KERNELS if kernels else ())})
     for i in range(repeats + 1):  # the first run warms up (and compiles)
         clock.total = 0.0
+        if kernels:
+            kernels.reset()
         start = time.thread_time()
         stereo.birchfield(left, right, max_d, threads=1)
         whole, match = time.thread_time() - start, clock.total
@@ -64,12 +92,15 @@ def measure(name: str, clock: MatchClock, repeats: int) -> dict[str, float]:
             runs["birchfield"].append(whole)
             runs["match"].append(match)
             runs["sgbm"].append(time.thread_time() - start)
+            for k in KERNELS if kernels else ():
+                runs[k].append(kernels.total[k])
     return {key: 1000 * statistics.median(v) for key, v in runs.items()}
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=7)
+    parser.add_argument("--parts", action="store_true", help="split the matcher's time")
     args = parser.parse_args(argv)
     numba.set_num_threads(1)
     cv2.setNumThreads(1)
@@ -77,13 +108,16 @@ def main(argv: list[str] | None = None) -> int:
     stereo.match_image_aggregated = clock
     print(f"armstereo from {Path(armstereo.__file__).parent}; ms of thread CPU, median of "
           f"{args.repeats}")
-    print("| pair | birchfield() | its matcher | the rest | SGBM | matcher / SGBM |")
-    print("|---|---|---|---|---|---|")
+    kernels = KernelClocks() if args.parts else None
+    extra = " | bounds | setup | forward | backtrack" if args.parts else ""
+    print(f"| pair | birchfield() | its matcher | the rest | SGBM | matcher / SGBM{extra} |")
+    print("|---|---|---|---|---|---|" + "---|" * (4 if args.parts else 0))
     for name in PAIRS:
-        t = measure(name, clock, args.repeats)
+        t = measure(name, clock, args.repeats, kernels)
+        parts = "".join(f" | {t[k]:.1f}" for k in KERNELS) if args.parts else ""
         print(f"| {name} | {t['birchfield']:.1f} | {t['match']:.1f} | "
               f"{t['birchfield'] - t['match']:.1f} | {t['sgbm']:.1f} | "
-              f"{t['match'] / t['sgbm']:.2f} |")
+              f"{t['match'] / t['sgbm']:.2f}{parts} |")
     return 0
 
 

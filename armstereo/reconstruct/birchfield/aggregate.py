@@ -140,8 +140,8 @@ def _match_blocks(starts: range, images: tuple, params: tuple, out: dict) -> Non
             continue
         lane_forward(row0, rx, ry, dmin, q, geo, x_begin, x_end, pen_l, rew, pen_r, slant,
                      costs, phi, rbest, run)
-        lane_backtrack(bounds, rx, ry, dmin, q, geo, phi, pen_l, rew, pen_r, slant, row0,
-                       ints, sloc, disp, state)
+        lane_backtrack(geo, phi, costs[4], pen_l, rew, pen_r, slant, dmin, row0, ints, sloc,
+                       disp, state)
 
 
 def _vector_rows(ry: int) -> int:
@@ -159,7 +159,7 @@ def _lane_work(bounds: np.ndarray, nd: int, rx: int, ry: int) -> tuple:
     """
     f32, L, W = np.float32, LANES, bounds.shape[1]
     costs = (bounds, np.empty((nd, _vector_rows(ry)), f32), np.empty((2, L), f32),
-             np.empty((2 * rx + 1, nd, L), f32), np.empty((2, nd, L), f32))
+             np.empty((2 * rx + 1, nd, L), f32), np.empty((W, nd, L), f32))
     return (np.zeros((GEO, L), np.int64), np.empty((W + nd + 2, L), f32),
             np.empty((W + nd + 2, L), f32), np.empty((W, L), f32), np.empty((2, W), np.bool_),
             costs, np.full((W + 1, nd + 2, L), INF, f32), np.empty((W + nd + 1, L), f32),

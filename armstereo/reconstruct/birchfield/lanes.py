@@ -131,7 +131,8 @@ def lane_forward(row0, rx, ry, dmin, q, geo, x_begin, x_end, pen_l, rew, pen_r, 
     ``u``; ``run`` (LANES,) float32 scratch. ``slant``: the scaled one-pixel-jump penalty
     (INF: none). ``costs``: ``(bounds, col, lims, ring, d)``, the image's BT intervals
     (:func:`image_bounds`) and work arrays: ``col`` (nd, nj), ``lims`` (2, LANES), ``ring``
-    (2 rx + 1, nd, LANES), ``d`` (2, nd, LANES) float32.
+    (2 rx + 1, nd, LANES), ``d`` (W, nd, LANES) float32 (the node costs of every right
+    pixel: the backtrack reads them back).
     """
     nd = phi.shape[1] - 2
     inf = np.float32(INF)
@@ -142,17 +143,17 @@ def lane_forward(row0, rx, ry, dmin, q, geo, x_begin, x_end, pen_l, rew, pen_r, 
     b = (bounds, row0)
     for c in range(x_begin - rx, x_begin + rx):
         _column_sums(b, c, dmin, ry, col, ring)
-    _node_costs(b, x_begin, rx, ry, dmin, q, lims, col, ring, d[x_begin % 2])
+    _node_costs(b, x_begin, rx, ry, dmin, q, lims, col, ring, d[x_begin])
     for u in range(x_begin, x_end + nd):
         for lane in range(LANES):
             rbest[u, lane] = inf
     for x in range(x_begin, x_end):
-        here = d[x % 2]
+        here = d[x]
         for lane in range(LANES):
             if geo[ACTIVE, lane] and geo[R0, lane] == x:
                 _start_lane(here, lane, phi[x], phi[x + 1], rbest[x:x + nd])
         if x + 1 < x_end:
-            there = d[(x + 1) % 2]
+            there = d[x + 1]
             _node_costs(b, x + 1, rx, ry, dmin, q, lims, col, ring, there)
             _step(there, phi[x], phi[x + 1], phi[x + 2], pen_l[x + 1:x + 1 + nd],
                   rew[x + 1:x + 1 + nd], pen_r[x], rbest[x:x + nd], slant, run)
@@ -173,11 +174,14 @@ def _node_costs(b, x, rx, ry, dmin, q, lims, col, ring, out):
     ``q`` (floor), INF where ``x + k`` is outside the lane's ``[x0, u1)``. ``ring`` holds the
     column sums of ``x - rx - 1 .. x + rx - 1`` on entry, of ``x - rx .. x + rx`` on return.
     Every sum is of integers below float32's exact range, so its order does not change it."""
-    _column_sums(b, x + rx, dmin, ry, col, ring)
-    for k in range(out.shape[0]):
-        _copy(((ring, 0, k, 0), (out, k, 0)), ())
-        for s in range(1, ring.shape[0]):
-            _add(((ring, s, k, 0), (out, k, 0)), ())
+    if rx == 0:  # one column (the default window): its sums are the costs, no ring
+        _vertical_sums(b, x, dmin, ry, col, out)
+    else:
+        _column_sums(b, x + rx, dmin, ry, col, ring)
+        for k in range(out.shape[0]):
+            _copy(((ring, 0, k, 0), (out, k, 0)), ())
+            for s in range(1, ring.shape[0]):
+                _add(((ring, s, k, 0), (out, k, 0)), ())
     _finish(out, x, lims, q)
 
 
@@ -313,10 +317,10 @@ def _node_update(b, c0, c1, p2, dk, pl, rw, rb, pr, run, out, slant, inf):
 
 
 @njit(cache=True, nogil=True)
-def lane_backtrack(bounds, rx, ry, dmin, q, geo, phi, pen_l, rew, pen_r, slant, row0, ints,
-                   sloc, disp, state):
+def lane_backtrack(geo, phi, nodes, pen_l, rew, pen_r, slant, dmin, row0, ints, sloc, disp,
+                   state):
     """Walk back each active lane's path (:func:`_walk`) and decode it into its output row.
-    ``bounds``: the image's BT intervals (:func:`image_bounds`); ``ints`` (2, W) int32 and
+    ``nodes``: the node costs of the forward pass (its ``d``); ``ints`` (2, W) int32 and
     ``sloc`` (W,) uint8 are scratch."""
     match, dloc = ints[0], ints[1]
     for lane in range(LANES):
@@ -324,18 +328,17 @@ def lane_backtrack(bounds, rx, ry, dmin, q, geo, phi, pen_l, rew, pen_r, slant, 
             continue
         r0, r1, x0, u1 = geo[R0, lane], geo[R1, lane], geo[X0, lane], geo[U1, lane]
         nx = u1 - r0
-        cost = (bounds, row0 + lane, r0, rx, ry, dmin, q)
-        if _walk(cost, r1 - r0, phi[r0:, :, lane], pen_l[r0:, lane], rew[r0:, lane],
-                 pen_r[r0:, lane], slant, nx, match[:nx]):
+        if _walk(nodes[r0:, :, lane], r1 - r0, phi[r0:, :, lane], pen_l[r0:, lane],
+                 rew[r0:, lane], pen_r[r0:, lane], slant, nx, match[:nx]):
             r = row0 + lane
-            _store_row(match[:nx], geo[LA, lane], geo[LB, lane], r0, x0 - r0, dmin, dloc, sloc,
-                       disp[r], state[r])
+            _store_row(match[:nx], geo[LA, lane], geo[LB, lane], r0, x0 - r0, dmin, dloc,
+                       sloc, disp[r], state[r])
 
 
 @njit(cache=True, inner=True)
-def _walk(cost, ny, phi, pen_l, rew, pen_r, slant, nx, match):
-    """The backtrack of one lane (module doc), in the row's local coordinates: ``cost``
-    the arguments of :func:`_node_cost` after the node, ``phi`` padded as there, ``pen_r[y]``
+def _walk(nodes, ny, phi, pen_l, rew, pen_r, slant, nx, match):
+    """The backtrack of one lane (module doc), in the row's local coordinates: ``nodes[y, k]``
+    the node costs, ``phi`` padded as in the forward pass, ``pen_r[y]``
     the right-occlusion penalty after right pixel ``y``. Same tests in the same order (the
     same tie-breaking)."""
     nd = phi.shape[1] - 2
@@ -356,7 +359,7 @@ def _walk(cost, ny, phi, pen_l, rew, pen_r, slant, nx, match):
         match[y + k] = y
         if y == 0:
             break
-        before = phi[y + 1, k + 1] - _node_cost(y, k, cost) + rew[y + k]
+        before = phi[y + 1, k + 1] - nodes[y, k] + rew[y + k]
         if phi[y, k + 1] == before:
             y -= 1
             continue
@@ -388,22 +391,3 @@ def _walk(cost, ny, phi, pen_l, rew, pen_r, slant, nx, match):
         y = x - kb
         k = kb
     return True
-
-
-@njit(cache=True, inline="always")
-def _node_cost(y, k, cost):
-    """The cost of node ``(r0 + y, k)`` of ``lane``, as :func:`_node_costs` computes it (the
-    same integer: only the order of the sum differs); ``cost``: ``(bounds, row, r0, rx, ry,
-    dmin, q)``, ``row`` the lane's image row."""
-    bounds, row, r0, rx, ry, dmin, q = cost
-    W = bounds.shape[1]
-    zero = np.float32(0.0)
-    total = zero
-    for dx in range(-rx, rx + 1):
-        c = min(W - 1, max(0, r0 + y + dx))
-        u = min(W - 1, c + dmin + k)
-        for j in range(row, row + 2 * ry + 1):
-            b, a = bounds[0, u, j], bounds[3, c, j]
-            total += min(max(zero, max(b - bounds[5, c, j], bounds[4, c, j] - b)),
-                         max(zero, max(a - bounds[2, u, j], bounds[1, u, j] - a)))
-    return total if q == 1 else np.floor(total * np.float32(1.0 / q))
