@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from armstereo.reconstruct.birchfield.jit import njit
+from armstereo.reconstruct.birchfield.minmax import max2, min2
 
 INF = 1 << 29  # cost of an impossible node; sums of two stay below 2**31
 
@@ -121,16 +122,16 @@ def variation_flags(row, seg_lo, seg_hi, lo, hi, threshold, forward, out, off):
     channel does.
     """
     for x in range(lo, hi):
-        a = x if forward else max(seg_lo, x - 2)
-        b = min(seg_hi - 1, x + 2) if forward else x
+        a = x if forward else max2(seg_lo, x - 2)
+        b = min2(seg_hi - 1, x + 2) if forward else x
         flag = False
         for c in range(row.shape[1]):
             mn = 255
             mx = 0
             for j in range(a, b + 1):
                 v = np.int32(row[j, c])
-                mn = min(mn, v)
-                mx = max(mx, v)
+                mn = min2(mn, v)
+                mx = max2(mx, v)
             if mx - mn >= threshold:
                 flag = True
         out[off + x - lo] = flag

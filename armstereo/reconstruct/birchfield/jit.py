@@ -11,7 +11,8 @@ numba, and is avoided on the default path: every array allocation type and every
 argument value compiles a function of its own (allocate work arrays in Python; pass
 ``np.int64``/``np.bool_`` rather than bare constants to a kernel), a slice assignment compiles
 a generic loop nest (write the loop), and every kernel gets wrappers for calls from Python
-(``inner=True`` leaves them out for kernels that only other kernels call).
+(none gets the C-callable one; ``inner=True`` leaves out the CPython one for kernels that
+only other kernels call).
 """
 
 from __future__ import annotations
@@ -25,10 +26,12 @@ log = logging.getLogger(__name__)
 _cache_ok: bool | None = None  # None until the first kernel has tried
 
 
-# A kernel that only other kernels call needs neither the CPython wrapper (argument unboxing,
-# large for many arguments) nor the C-callable wrapper that numba compiles for every function
-# by default; leaving them out shortens the first run's compile.
-_INNER = dict(no_cpython_wrapper=True, no_cfunc_wrapper=True)
+# A kernel that only other kernels call needs no CPython wrapper (argument unboxing, large
+# for many arguments); no kernel needs the C-callable wrapper that numba compiles for every
+# function by default (it serves ``cfunc``-style calls, which nothing here makes). Leaving
+# them out shortens the first run's compile.
+_INNER = dict(no_cpython_wrapper=True)
+_NO_CFUNC = dict(no_cfunc_wrapper=True)
 
 
 def njit(*args, inner: bool = False, **options):
@@ -36,6 +39,7 @@ def njit(*args, inner: bool = False, **options):
 
     ``inner=True``: the kernel is called from other kernels only, never from Python.
     """
+    options.update(_NO_CFUNC)
     if inner:
         options.update(_INNER)
     if args and callable(args[0]):

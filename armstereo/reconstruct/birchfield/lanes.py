@@ -43,6 +43,7 @@ from armstereo.reconstruct.birchfield.dp_exact import VALID_BELOW
 from armstereo.reconstruct.birchfield.dp_pruned import C0
 from armstereo.reconstruct.birchfield.jit import njit
 from armstereo.reconstruct.birchfield.matcher import _begin_row, _store_row
+from armstereo.reconstruct.birchfield.minmax import max2, min2
 from armstereo.reconstruct.birchfield.simd import LANES, lanewise, vfloor, vmax, vmin
 
 # rows of the (GEO, LANES) int64 geometry of a block: the valid runs of the left
@@ -80,7 +81,7 @@ def lane_setup(left3, right3, lmask, rmask, textured, row0, dmin, nd, pens, disp
         if r1 <= r0 or u1 <= x0:
             continue
         _set_geometry(geo, lane, la, lb, r0, r1, x0, u1, ra, rb)
-        x_begin, x_end = min(x_begin, r0), max(x_end, r1)
+        x_begin, x_end = min2(x_begin, r0), max2(x_end, r1)
         _lane_penalties(left3[r], right3[r], textured[r], geo, dmin, nd, pens, lane, pen_l, rew,
                         pen_r, flags[0], flags[1])
     return x_begin, x_end
@@ -164,7 +165,7 @@ def _column_sums(b, c, dmin, ry, col, ring):
     """BT dissimilarities of right column ``c`` (clamped to the image) summed over each
     lane's rows (:func:`_vertical_sums`), into ``ring[c mod len(ring)]``."""
     W = b[0].shape[1]
-    _vertical_sums(b, min(W - 1, max(0, c)), dmin, ry, col, ring[c % ring.shape[0]])
+    _vertical_sums(b, min2(W - 1, max2(0, c)), dmin, ry, col, ring[c % ring.shape[0]])
 
 
 @njit(cache=True, inner=True)
@@ -193,9 +194,9 @@ def image_bounds(left, right, ry, bounds):
     past ``H + 2 ry`` pad the last block's vectors), ``i`` 0..2 left, 3..5 right."""
     H, W = left.shape
     for x in range(W):  # row index innermost: the writes are contiguous
-        xa, xb = max(0, x - 1), min(W - 1, x + 1)
+        xa, xb = max2(0, x - 1), min2(W - 1, x + 1)
         for j in range(bounds.shape[2]):
-            r = min(H - 1, max(0, j - ry))
+            r = min2(H - 1, max2(0, j - ry))
             _interval(left[r], x, xa, xb, bounds, 0, j)
             _interval(right[r], x, xa, xb, bounds, 3, j)
 
@@ -206,8 +207,8 @@ def _interval(row, x, xa, xb, bounds, i, j):
     p = np.float32(row[xa]) + np.float32(row[x])
     n = np.float32(row[x]) + np.float32(row[xb])
     bounds[i, x, j] = a
-    bounds[i + 1, x, j] = min(a, min(p, n))
-    bounds[i + 2, x, j] = max(a, max(p, n))
+    bounds[i + 1, x, j] = min2(a, min2(p, n))
+    bounds[i + 2, x, j] = max2(a, max2(p, n))
 
 
 @njit(cache=True, inner=True)
@@ -222,7 +223,7 @@ def _vertical_sums(bj, x, dmin, ry, col, out):
     zero = np.float32(0.0)
     for j in range(j0, j0 + col.shape[1], LANES):  # k inner: the right pixel's loads stay put
         for k in range(out.shape[0]):
-            u = min(W - 1, x + dmin + k)
+            u = min2(W - 1, x + dmin + k)
             _bt(((b, 0, u, j), (b, 1, u, j), (b, 2, u, j), (b, 3, x, j), (b, 4, x, j),
                  (b, 5, x, j), (col, k, j - j0)), (zero,))
     for k in range(out.shape[0]):
@@ -286,7 +287,7 @@ def _start_lane(d, lane, before, first, rbest):
     for c in range(before.shape[0]):
         before[c, lane] = inf
     for k in range(d.shape[0]):
-        first[k + 1, lane] = min(np.float32(C0) + d[k, lane], inf)
+        first[k + 1, lane] = min2(np.float32(C0) + d[k, lane], inf)
         rbest[k, lane] = inf
 
 

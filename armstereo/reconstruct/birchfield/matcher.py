@@ -27,6 +27,7 @@ from armstereo.reconstruct.birchfield.cost import (
 from armstereo.reconstruct.birchfield.dp_exact import scanline_dp_exact
 from armstereo.reconstruct.birchfield.dp_pruned import BORDER, INVALID, decode_matches, scanline_dp
 from armstereo.reconstruct.birchfield.jit import njit
+from armstereo.reconstruct.birchfield.minmax import max2, min2
 
 DP_EXACT = 0  # exact O(n nd) programme (default)
 DP_PRUNED = 1  # reference code's pruned search
@@ -59,10 +60,10 @@ def row_geometry(la, lb, ra, rb, dmin, nd):
     Left pixel ``u`` (= xL - dmin) can match right pixels ``u - nd + 1 .. u`` only.
     """
     u0 = la - dmin
-    u1 = min(lb - dmin, rb + nd - 1)
-    r0 = max(ra, u0 - nd + 1)
-    r1 = min(rb, u1)
-    x0 = max(u0, r0)
+    u1 = min2(lb - dmin, rb + nd - 1)
+    r0 = max2(ra, u0 - nd + 1)
+    r1 = min2(rb, u1)
+    x0 = max2(u0, r0)
     return r0, r1, x0, u1
 
 
@@ -115,9 +116,9 @@ def _store_row(match, la, lb, r0, x_lo, dmin, dloc, sloc, disp_row, state_row):
         state_row[off + x] = sloc[x]
     # valid left pixels that cannot be matched keep BORDER and take the nearest decoded
     # disparity (the reference code's dense border policy)
-    for x in range(la, min(off + x_lo, disp_row.shape[0])):
+    for x in range(la, min2(off + x_lo, disp_row.shape[0])):
         disp_row[x] = dloc[x_lo]
-    for x in range(off + nx, min(lb, disp_row.shape[0])):
+    for x in range(off + nx, min2(lb, disp_row.shape[0])):
         disp_row[x] = dloc[nx - 1]
 
 
