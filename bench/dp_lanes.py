@@ -32,7 +32,7 @@ import armstereo.reconstruct.stereo as stereo
 
 MIDDLEBURY = Path(__file__).resolve().parents[1] / "tests" / "data" / "middlebury"
 PAIRS = ("tsukuba", "venus", "teddy", "cones")
-KERNELS = ("image_bounds", "lane_setup", "lane_forward", "lane_backtrack")
+KERNELS = ("image_bounds", "block_setup", "lane_forward", "lane_backtrack")
 
 
 class MatchClock:

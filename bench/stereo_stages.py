@@ -50,7 +50,8 @@ STAGES = [
     ("aggregate", "fill_outside", "fill_outside (aggregate.py)"),
     ("aggregate", "match_block", "DP kernels"),  # before the lane kernels
     ("aggregate", "image_bounds", "DP kernels"),
-    ("aggregate", "lane_setup", "DP kernels"),
+    ("aggregate", "lane_setup", "DP kernels"),  # before block_setup
+    ("aggregate", "block_setup", "DP kernels"),
     ("aggregate", "lane_forward", "DP kernels"),
     ("aggregate", "lane_backtrack", "DP kernels"),
     ("stereo", "_gradient_step", "sub-pixel: fast"),

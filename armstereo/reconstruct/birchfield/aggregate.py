@@ -12,11 +12,12 @@ penalty, without intensity variation (a slanted surface rather than an occlusion
 Each row has its own programme, but rows run :data:`.lanes.LANES` at a time in lockstep, one
 row per SIMD lane (:mod:`.lanes`): every step of the programme, the running minimum over
 disparities included, is then one vector operation, and node costs are summed as the forward
-pass goes. A Python loop drives the blocks through three small kernels (setup, forward,
+pass goes. Every block's geometry and penalties are set up in numpy for the whole image
+(:mod:`.blocks`), then a Python loop drives the blocks through two small kernels (forward,
 backtrack), which numba compiles separately: far less compile time than one kernel with every
-step inlined (bench/results/dp_lanes.md). Pixels outside the validity masks take part in the
-sums with the edge-replicated values the caller fills in (a row's programme itself only uses
-its valid run, as in :mod:`.matcher`).
+step inlined (bench/results/dp_lanes.md, coldstart.md). Pixels outside the validity masks
+take part in the sums with the edge-replicated values the caller fills in (a row's programme
+itself only uses its valid run, as in :mod:`.matcher`).
 
 The reward for a match can be withheld per left pixel (``textured``): matching a featureless
 pixel then gains nothing, so the programme has no reason to bend its path through a black gap
@@ -32,17 +33,16 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from armstereo.reconstruct.birchfield.blocks import block_setup
 from armstereo.reconstruct.birchfield.cost import INF
 from armstereo.reconstruct.birchfield.dp_exact import EXACT_BELOW, MAX_PIXEL_COST
 from armstereo.reconstruct.birchfield.dp_pruned import C0, NO_VARIATION_PENALTY
 from armstereo.reconstruct.birchfield.lanes import (
-    GEO,
     LANES,
     SLANT,
     image_bounds,
     lane_backtrack,
     lane_forward,
-    lane_setup,
 )
 
 # the one-row kernels, re-exported for the matchers that import them from here (.vertical)
@@ -101,17 +101,19 @@ def match_image_aggregated(left: np.ndarray, right: np.ndarray, lmask: np.ndarra
     starts = range(0, H, LANES)
     bounds = np.empty((6, W, starts[-1] + _vector_rows(ry)), np.float32)
     image_bounds(fill_outside(left, lmask), fill_outside(right, rmask), ry, bounds)
-    images = (left[:, :, None], right[:, :, None], bounds, lmask, rmask,
-              np.ascontiguousarray(textured, np.bool_))
-    params = (dmin, nd, rx, ry, q, _scaled_penalties(occ, rew, slant, npix, q))
+    pens = _scaled_penalties(occ, rew, slant, npix, q)
+    setup = block_setup(left, right, lmask, rmask, np.asarray(textured, np.bool_), dmin, nd,
+                        pens, out["disp"], out["state"])
+    params = (dmin, nd, rx, ry, q, pens)
     n = max(1, min(len(starts), threads))
     cuts = np.linspace(0, len(starts), n + 1).round().astype(int)
-    jobs = [starts[cuts[i]:cuts[i + 1]] for i in range(n)]
+    jobs = [range(cuts[i], cuts[i + 1]) for i in range(n)]
     if n == 1:
-        _match_blocks(jobs[0], images, params, out)
+        _match_blocks(jobs[0], bounds, setup, params, out)
     else:
         with ThreadPoolExecutor(n) as pool:
-            for job in [pool.submit(_match_blocks, rows, images, params, out) for rows in jobs]:
+            for job in [pool.submit(_match_blocks, blocks, bounds, setup, params, out)
+                        for blocks in jobs]:
                 job.result()
     return out
 
@@ -125,19 +127,20 @@ def _scaled_penalties(occ: int, rew: int, slant: int, npix: int, q: int) -> np.n
                      scaled(slant) if slant >= 0 else INF], np.float32)
 
 
-def _match_blocks(starts: range, images: tuple, params: tuple, out: dict) -> None:
-    """Match the blocks of rows beginning at ``starts`` (the kernels release the GIL)."""
-    left3, right3, bounds, lmask, rmask, textured = images
+def _match_blocks(blocks: range, bounds: np.ndarray, setup: tuple, params: tuple,
+                  out: dict) -> None:
+    """Match the blocks of rows ``blocks`` (indices; the kernels release the GIL), set up by
+    :func:`.blocks.block_setup` (``setup``)."""
     dmin, nd, rx, ry, q, pens = params
     disp, state = out["disp"], out["state"]
-    geo, pen_l, rew, pen_r, flags, costs, phi, rbest, run, ints, sloc = _lane_work(
-        bounds, nd, rx, ry)
+    geos, pen_ls, rews, pen_rs, ranges = setup
+    costs, phi, rbest, run, ints, sloc = _lane_work(bounds, nd, rx, ry)
     slant = pens[SLANT]
-    for row0 in starts:
-        x_begin, x_end = lane_setup(left3, right3, lmask, rmask, textured, row0, dmin, nd, pens,
-                                    disp, state, geo, pen_l, rew, pen_r, flags)
+    for b in blocks:
+        x_begin, x_end = int(ranges[b, 0]), int(ranges[b, 1])
         if x_end <= x_begin:
             continue
+        row0, geo, pen_l, rew, pen_r = b * LANES, geos[b], pen_ls[b], rews[b], pen_rs[b]
         lane_forward(row0, rx, ry, dmin, q, geo, x_begin, x_end, pen_l, rew, pen_r, slant,
                      costs, phi, rbest, run)
         lane_backtrack(geo, phi, costs[4], pen_l, rew, pen_r, slant, dmin, row0, ints, sloc,
@@ -153,14 +156,12 @@ def _lane_work(bounds: np.ndarray, nd: int, rx: int, ry: int) -> tuple:
     """Work arrays of one thread, allocated here rather than in the kernels: every array type
     a kernel creates compiles its own allocation code (numba's cold start).
 
-    ``(geo, pen_l, rew, pen_r, flags, costs, phi, rbest, run, ints, sloc)`` as the kernels
-    of :mod:`.lanes` name them, ``costs`` = ``(bounds, col, lims, ring, d)`` (``bounds``
-    shared by the threads); ``phi`` starts INF (its padding stays so).
+    ``(costs, phi, rbest, run, ints, sloc)`` as the kernels of :mod:`.lanes` name them,
+    ``costs`` = ``(bounds, col, lims, ring, d)`` (``bounds`` shared by the
+    threads); ``phi`` starts INF (its padding stays so).
     """
     f32, L, W = np.float32, LANES, bounds.shape[1]
     costs = (bounds, np.empty((nd, _vector_rows(ry)), f32), np.empty((2, L), f32),
              np.empty((2 * rx + 1, nd, L), f32), np.empty((W, nd, L), f32))
-    return (np.zeros((GEO, L), np.int64), np.empty((W + nd + 2, L), f32),
-            np.empty((W + nd + 2, L), f32), np.empty((W, L), f32), np.empty((2, W), np.bool_),
-            costs, np.full((W + 1, nd + 2, L), INF, f32), np.empty((W + nd + 1, L), f32),
+    return (costs, np.full((W + 1, nd + 2, L), INF, f32), np.empty((W + nd + 1, L), f32),
             np.empty(L, f32), np.empty((2, W), np.int32), np.empty(W, np.uint8))

@@ -38,11 +38,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from armstereo.reconstruct.birchfield.cost import INF, VARIATION_THRESHOLD, variation_flags
+from armstereo.reconstruct.birchfield.cost import INF
 from armstereo.reconstruct.birchfield.dp_exact import VALID_BELOW
 from armstereo.reconstruct.birchfield.dp_pruned import C0
 from armstereo.reconstruct.birchfield.jit import njit
-from armstereo.reconstruct.birchfield.matcher import _begin_row, _store_row
+from armstereo.reconstruct.birchfield.matcher import _store_row
 from armstereo.reconstruct.birchfield.minmax import max2, min2
 from armstereo.reconstruct.birchfield.simd import LANES, lanewise, vfloor, vmax, vmin
 
@@ -51,72 +51,6 @@ from armstereo.reconstruct.birchfield.simd import LANES, lanewise, vfloor, vmax,
 GEO = 9
 LA, LB, R0, R1, X0, U1, RA, RB, ACTIVE = range(GEO)
 OCC, REW, NOVAR, SLANT = range(4)  # the scaled penalties in ``pens``
-
-
-@njit(cache=True, nogil=True)
-def lane_setup(left3, right3, lmask, rmask, textured, row0, dmin, nd, pens, disp, state, geo,
-               pen_l, rew, pen_r, flags):
-    """Reset the output rows ``row0 .. row0 + LANES - 1`` and fill, per lane, the geometry
-    ``geo`` and the penalties in image coordinates: ``pen_l[u]`` (left occlusion ending before
-    shifted left pixel ``u``), ``rew[u]`` (reward for matching ``u``), ``pen_r[x]`` (right
-    occlusion after right pixel ``x``). Returns the block's range ``(x_begin, x_end)`` of right
-    pixels (empty if no lane is active)."""
-    H = lmask.shape[0]
-    zero_f = np.float32(0.0)
-    for u in range(pen_l.shape[0]):  # finite values where no lane is defined (garbage lanes)
-        for lane in range(LANES):
-            pen_l[u, lane] = zero_f
-            rew[u, lane] = zero_f
-    for x in range(pen_r.shape[0]):
-        for lane in range(LANES):
-            pen_r[x, lane] = zero_f
-    x_begin, x_end = lmask.shape[1], 0
-    for lane in range(LANES):
-        geo[ACTIVE, lane] = 0
-        r = row0 + lane
-        if r >= H:
-            continue
-        la, lb, r0, r1, x0, u1, ra, rb = _begin_row(lmask[r], rmask[r], dmin, nd, disp[r],
-                                                    state[r])
-        if r1 <= r0 or u1 <= x0:
-            continue
-        _set_geometry(geo, lane, la, lb, r0, r1, x0, u1, ra, rb)
-        x_begin, x_end = min2(x_begin, r0), max2(x_end, r1)
-        _lane_penalties(left3[r], right3[r], textured[r], geo, dmin, nd, pens, lane, pen_l, rew,
-                        pen_r, flags[0], flags[1])
-    return x_begin, x_end
-
-
-@njit(cache=True, inline="always")
-def _set_geometry(geo, lane, la, lb, r0, r1, x0, u1, ra, rb):
-    geo[LA, lane], geo[LB, lane], geo[RA, lane], geo[RB, lane] = la, lb, ra, rb
-    geo[R0, lane], geo[R1, lane], geo[X0, lane], geo[U1, lane] = r0, r1, x0, u1
-    geo[ACTIVE, lane] = 1
-
-
-@njit(cache=True, inner=True)
-def _lane_penalties(left3, right3, textured, geo, dmin, nd, pens, lane, pen_l, rew, pen_r, gl,
-                    gr):
-    """One lane's penalties and rewards (local left pixel ``i`` is shifted left pixel
-    ``r0 + i``): a left occlusion costs ``occ`` next to intensity variation, ``occ + novar``
-    elsewhere and past the row's left pixels; only textured left pixels earn the reward."""
-    r0, r1, x0, u1 = geo[R0, lane], geo[R1, lane], geo[X0, lane], geo[U1, lane]
-    nx, x_lo = u1 - r0, x0 - r0
-    occ_s, rew_s, novar = pens[OCC], pens[REW], pens[NOVAR]
-    # np.int64/np.bool_: plain constants would be typed as literals, and each literal value
-    # compiles its own copy of the called kernel
-    threshold, zero = np.int64(VARIATION_THRESHOLD), np.int64(0)
-    for x in range(gl.shape[0]):
-        gl[x] = False
-    variation_flags(left3, geo[LA, lane], geo[LB, lane], x0 + dmin, u1 + dmin, threshold,
-                    np.bool_(True), gl, x_lo)
-    variation_flags(right3, geo[RA, lane], geo[RB, lane], r0, r1, threshold, np.bool_(False),
-                    gr, zero)
-    for i in range(nx + nd + 1):
-        pen_l[r0 + i, lane] = occ_s if i < nx and gl[i] else occ_s + novar
-        rew[r0 + i, lane] = rew_s if i < nx and textured[r0 + dmin + i] else np.float32(0.0)
-    for y in range(r1 - r0):
-        pen_r[r0 + y, lane] = np.float32(occ_s + (0 if gr[y] else novar))
 
 
 @njit(cache=True, nogil=True, fastmath=True)

@@ -1,0 +1,126 @@
+"""The set-up of every block of rows for :mod:`.lanes`, in numpy for the whole image at once.
+
+What :func:`.lanes.lane_setup` computes per block (each row's valid runs and ranges, its
+occlusion penalties and rewards, the reset of its output row) is a few whole-image array
+operations here. It is not where the time goes (a few ms per image), but as numba kernels it
+was about a third of the matcher's first-run compile (bench/results/coldstart.md).
+
+The values are those of the kernels: the same integer geometry (:func:`.matcher.longest_run`,
+:func:`.matcher.row_geometry`), the same intensity-variation flags (:func:`.cost.variation_flags`)
+and the same float32 penalties, so the programme sees identical inputs.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from armstereo.reconstruct.birchfield.cost import VARIATION_THRESHOLD
+from armstereo.reconstruct.birchfield.dp_pruned import BORDER, INVALID
+from armstereo.reconstruct.birchfield.lanes import (
+    ACTIVE,
+    GEO,
+    LA,
+    LANES,
+    LB,
+    NOVAR,
+    OCC,
+    R0,
+    R1,
+    RA,
+    RB,
+    REW,
+    U1,
+    X0,
+)
+
+
+def longest_runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(start, stop)`` (H,) int64 of each row's first longest run of True ((0, 0): none)."""
+    H, W = mask.shape
+    idx = np.arange(W)
+    last_false = np.maximum.accumulate(np.where(mask, -1, idx), axis=1)
+    run = idx - last_false  # length of the run ending at each pixel
+    end = np.argmax(run, axis=1)  # the first pixel where the longest length is reached
+    length = run[np.arange(H), end]
+    return np.where(length > 0, end + 1 - length, 0), np.where(length > 0, end + 1, 0)
+
+
+def _varies(img: np.ndarray, lo: np.ndarray, hi: np.ndarray, forward: bool) -> np.ndarray:
+    """(H, W) bool: the 3-pixel window at each pixel (``[x, x + 2]`` forward, ``[x - 2, x]``
+    backward, cut at the row's segment ``[lo, hi)``) varies by >= VARIATION_THRESHOLD."""
+    H, W = img.shape
+    x = np.arange(W)[None, :]
+    v = img.astype(np.int32)
+    mn, mx = v.copy(), v.copy()
+    for step in (1, 2):
+        j = np.minimum(hi[:, None] - 1, x + step) if forward else np.maximum(lo[:, None],
+                                                                              x - step)
+        w = np.take_along_axis(v, np.clip(j, 0, W - 1), axis=1)
+        np.minimum(mn, w, out=mn)
+        np.maximum(mx, w, out=mx)
+    return mx - mn >= VARIATION_THRESHOLD
+
+
+def block_setup(left: np.ndarray, right: np.ndarray, lmask: np.ndarray, rmask: np.ndarray,
+                textured: np.ndarray, dmin: int, nd: int, pens: np.ndarray, disp: np.ndarray,
+                state: np.ndarray) -> tuple:
+    """Set up every block of :data:`.lanes.LANES` rows of the (H, W) uint8 grey images.
+
+    Resets ``disp`` (-1) and ``state`` (INVALID, BORDER on the left valid run) in place.
+    Returns ``(geo, pen_l, rew, pen_r, ranges)``: per block ``b``, ``geo[b]`` (GEO, LANES)
+    int64, ``pen_l[b]``/``rew[b]`` (W + nd + 2, LANES) and ``pen_r[b]`` (W, LANES) float32
+    as :func:`.lanes.lane_setup` fills them, and ``ranges[b]`` its ``(x_begin, x_end)``.
+    """
+    H, W = lmask.shape
+    nb = -(-H // LANES)
+    la, lb = longest_runs(lmask)
+    ra, rb = longest_runs(rmask)
+    u0 = la - dmin
+    u1 = np.minimum(lb - dmin, rb + nd - 1)
+    r0 = np.maximum(ra, u0 - nd + 1)
+    r1 = np.minimum(rb, u1)
+    x0 = np.maximum(u0, r0)
+    active = (r1 > r0) & (u1 > x0)
+    disp[:] = -1
+    cols = np.arange(W)[None, :]
+    state[:] = np.where((cols >= la[:, None]) & (cols < lb[:, None]), BORDER, INVALID)
+
+    n_u = W + nd + 2
+    i = np.arange(n_u)[None, :] - r0[:, None]  # local left pixel of each shifted position
+    nx = (u1 - r0)[:, None]
+    gl = _varies(left, la, lb, True)  # at image column r0 + dmin + i
+    col_l = np.arange(n_u)[None, :] + dmin
+    # a negative column wraps around, as the kernels' indexing does (numba's wraparound)
+    col_l = np.clip(np.where(col_l < 0, col_l + W, col_l), 0, W - 1)
+    in_x = (i >= (x0 - r0)[:, None]) & (i < nx)
+    gl_u = in_x & np.take_along_axis(gl, np.broadcast_to(col_l, (H, n_u)), axis=1)
+    tex_u = (i < nx) & np.take_along_axis(textured, np.broadcast_to(col_l, (H, n_u)), axis=1)
+    occ, rew_s, novar = pens[OCC], pens[REW], pens[NOVAR]
+    span = (i >= 0) & (i < nx + nd + 1) & active[:, None]
+    zero = np.float32(0)
+    pen_l = np.where(span, np.where(gl_u, occ, occ + novar), zero).astype(np.float32)
+    rew = np.where(span & tex_u, rew_s, zero).astype(np.float32)
+    gr = _varies(right, ra, rb, False)
+    on_r = (cols >= r0[:, None]) & (cols < r1[:, None]) & active[:, None]
+    pen_r = np.where(on_r, np.where(gr, occ, occ + novar), zero).astype(np.float32)
+
+    geo = np.zeros((nb * LANES, GEO), np.int64)
+    for k, v in ((LA, la), (LB, lb), (R0, r0), (R1, r1), (X0, x0), (U1, u1), (RA, ra),
+                 (RB, rb), (ACTIVE, active)):
+        geo[:H, k] = np.where(active, v, 0)
+    lo = np.where(active, r0, W)
+    hi = np.where(active, r1, 0)
+    pad = nb * LANES - H
+    lo, hi = np.pad(lo, (0, pad), constant_values=W), np.pad(hi, (0, pad))
+    ranges = np.stack([lo.reshape(nb, LANES).min(axis=1), hi.reshape(nb, LANES).max(axis=1)],
+                      axis=1)
+    return (np.ascontiguousarray(geo.reshape(nb, LANES, GEO).transpose(0, 2, 1)),
+            _by_block(pen_l, nb), _by_block(rew, nb), _by_block(pen_r, nb), ranges)
+
+
+def _by_block(a: np.ndarray, nb: int) -> np.ndarray:
+    """(H, n) per-row values as (nb, n, LANES) contiguous blocks (rows past H zero)."""
+    H, n = a.shape
+    out = np.zeros((nb * LANES, n), a.dtype)
+    out[:H] = a
+    return np.ascontiguousarray(out.reshape(nb, LANES, n).transpose(0, 2, 1))
