@@ -37,28 +37,34 @@ from armstereo.reconstruct.birchfield.lanes import (
 def longest_runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``(start, stop)`` (H,) int64 of each row's first longest run of True ((0, 0): none)."""
     H, W = mask.shape
-    idx = np.arange(W)
+    idx = np.arange(W, dtype=np.int32)
     last_false = np.maximum.accumulate(np.where(mask, -1, idx), axis=1)
     run = idx - last_false  # length of the run ending at each pixel
     end = np.argmax(run, axis=1)  # the first pixel where the longest length is reached
     length = run[np.arange(H), end]
-    return np.where(length > 0, end + 1 - length, 0), np.where(length > 0, end + 1, 0)
+    has = length > 0
+    return (np.where(has, end + 1 - length, 0).astype(np.int64),
+            np.where(has, end + 1, 0).astype(np.int64))
 
 
 def _varies(img: np.ndarray, lo: np.ndarray, hi: np.ndarray, forward: bool) -> np.ndarray:
     """(H, W) bool: the 3-pixel window at each pixel (``[x, x + 2]`` forward, ``[x - 2, x]``
-    backward, cut at the row's segment ``[lo, hi)``) varies by >= VARIATION_THRESHOLD."""
+    backward, cut at the row's segment ``[lo, hi)``) varies by >= VARIATION_THRESHOLD.
+    Only pixels inside the segment are meaningful."""
     H, W = img.shape
-    x = np.arange(W)[None, :]
-    v = img.astype(np.int32)
-    mn, mx = v.copy(), v.copy()
-    for step in (1, 2):
-        j = np.minimum(hi[:, None] - 1, x + step) if forward else np.maximum(lo[:, None],
-                                                                              x - step)
-        w = np.take_along_axis(v, np.clip(j, 0, W - 1), axis=1)
-        np.minimum(mn, w, out=mn)
-        np.maximum(mx, w, out=mx)
-    return mx - mn >= VARIATION_THRESHOLD
+    rows, cols = np.arange(H), np.arange(W)[None, :]
+    # repeat the segment's edge pixel past it: plain shifted windows are then cut windows
+    if forward:
+        edge = img[rows, np.maximum(hi - 1, 0)][:, None]
+        v = np.where(cols >= hi[:, None], edge, img)
+        a, b, c = v, np.c_[v[:, 1:], v[:, -1:]], np.c_[v[:, 2:], v[:, -1:], v[:, -1:]]
+    else:
+        edge = img[rows, np.minimum(lo, W - 1)][:, None]
+        v = np.where(cols < lo[:, None], edge, img)
+        a, b, c = v, np.c_[v[:, :1], v[:, :-1]], np.c_[v[:, :1], v[:, :1], v[:, :-2]]
+    mn = np.minimum(np.minimum(a, b), c)
+    mx = np.maximum(np.maximum(a, b), c)
+    return mx - mn >= VARIATION_THRESHOLD  # uint8: mx >= mn, no wrap
 
 
 def block_setup(left: np.ndarray, right: np.ndarray, lmask: np.ndarray, rmask: np.ndarray,
@@ -85,24 +91,27 @@ def block_setup(left: np.ndarray, right: np.ndarray, lmask: np.ndarray, rmask: n
     cols = np.arange(W)[None, :]
     state[:] = np.where((cols >= la[:, None]) & (cols < lb[:, None]), BORDER, INVALID)
 
+    # per-row bounds as int32 columns; an inactive row gets empty ranges (its values stay 0)
+    def column(v, empty):
+        return np.where(active, v, empty).astype(np.int32)[:, None]
+
     n_u = W + nd + 2
-    i = np.arange(n_u)[None, :] - r0[:, None]  # local left pixel of each shifted position
-    nx = (u1 - r0)[:, None]
-    gl = _varies(left, la, lb, True)  # at image column r0 + dmin + i
-    col_l = np.arange(n_u)[None, :] + dmin
+    u = np.arange(n_u, dtype=np.int32)[None, :]  # shifted left pixel (image column u + dmin)
+    s0, s1 = column(r0, n_u), column(u1 + nd + 1, 0)  # the lane's span of left pixels
+    e0, e1, rend = column(x0, n_u), column(u1, 0), column(u1, 0)
+    col_l = np.arange(n_u) + dmin
     # a negative column wraps around, as the kernels' indexing does (numba's wraparound)
     col_l = np.clip(np.where(col_l < 0, col_l + W, col_l), 0, W - 1)
-    in_x = (i >= (x0 - r0)[:, None]) & (i < nx)
-    gl_u = in_x & np.take_along_axis(gl, np.broadcast_to(col_l, (H, n_u)), axis=1)
-    tex_u = (i < nx) & np.take_along_axis(textured, np.broadcast_to(col_l, (H, n_u)), axis=1)
+    gl = _varies(left, la, lb, True)[:, col_l]
     occ, rew_s, novar = pens[OCC], pens[REW], pens[NOVAR]
-    span = (i >= 0) & (i < nx + nd + 1) & active[:, None]
-    zero = np.float32(0)
-    pen_l = np.where(span, np.where(gl_u, occ, occ + novar), zero).astype(np.float32)
-    rew = np.where(span & tex_u, rew_s, zero).astype(np.float32)
+    zero, occ_nv = np.float32(0), np.float32(occ + novar)
+    span = (u >= s0) & (u < s1)
+    pen_l = np.where(span, np.where((u >= e0) & (u < e1) & gl, occ, occ_nv), zero)
+    rew = np.where((u >= s0) & (u < rend) & textured[:, col_l], rew_s, zero)
     gr = _varies(right, ra, rb, False)
-    on_r = (cols >= r0[:, None]) & (cols < r1[:, None]) & active[:, None]
-    pen_r = np.where(on_r, np.where(gr, occ, occ + novar), zero).astype(np.float32)
+    c = np.arange(W, dtype=np.int32)[None, :]
+    on_r = (c >= column(r0, W)) & (c < column(r1, 0))
+    pen_r = np.where(on_r, np.where(gr, occ, occ_nv), zero)
 
     geo = np.zeros((nb * LANES, GEO), np.int64)
     for k, v in ((LA, la), (LB, lb), (R0, r0), (R1, r1), (X0, x0), (U1, u1), (RA, ra),
