@@ -88,8 +88,10 @@ def block_setup(left: np.ndarray, right: np.ndarray, lmask: np.ndarray, rmask: n
     x0 = np.maximum(u0, r0)
     active = (r1 > r0) & (u1 > x0)
     disp[:] = -1
-    cols = np.arange(W)[None, :]
-    state[:] = np.where((cols >= la[:, None]) & (cols < lb[:, None]), BORDER, INVALID)
+    c = np.arange(W, dtype=np.int32)[None, :]
+    inside = (c >= la.astype(np.int32)[:, None]) & (c < lb.astype(np.int32)[:, None])
+    np.subtract(np.uint8(INVALID), inside.view(np.uint8) * np.uint8(INVALID - BORDER),
+                out=state)  # BORDER on the run
 
     # per-row bounds as int32 columns; an inactive row gets empty ranges (its values stay 0)
     def column(v, empty):
@@ -102,14 +104,13 @@ def block_setup(left: np.ndarray, right: np.ndarray, lmask: np.ndarray, rmask: n
     col_l = np.arange(n_u) + dmin
     # a negative column wraps around, as the kernels' indexing does (numba's wraparound)
     col_l = np.clip(np.where(col_l < 0, col_l + W, col_l), 0, W - 1)
-    gl = _varies(left, la, lb, True)[:, col_l]
+    gl = np.take(_varies(left, la, lb, True), col_l, axis=1)
     occ, rew_s, novar = pens[OCC], pens[REW], pens[NOVAR]
     zero, occ_nv = np.float32(0), np.float32(occ + novar)
     span = (u >= s0) & (u < s1)
     pen_l = np.where(span, np.where((u >= e0) & (u < e1) & gl, occ, occ_nv), zero)
-    rew = np.where((u >= s0) & (u < rend) & textured[:, col_l], rew_s, zero)
+    rew = np.where((u >= s0) & (u < rend) & np.take(textured, col_l, axis=1), rew_s, zero)
     gr = _varies(right, ra, rb, False)
-    c = np.arange(W, dtype=np.int32)[None, :]
     on_r = (c >= column(r0, W)) & (c < column(r1, 0))
     pen_r = np.where(on_r, np.where(gr, occ, occ_nv), zero)
 
