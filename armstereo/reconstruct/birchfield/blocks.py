@@ -37,6 +37,8 @@ from armstereo.reconstruct.birchfield.lanes import (
 def longest_runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``(start, stop)`` (H,) int64 of each row's first longest run of True ((0, 0): none)."""
     H, W = mask.shape
+    if mask.all():  # no rectification fill: every row is one run
+        return np.zeros(H, np.int64), np.full(H, W, np.int64)
     idx = np.arange(W, dtype=np.int32)
     last_false = np.maximum.accumulate(np.where(mask, -1, idx), axis=1)
     run = idx - last_false  # length of the run ending at each pixel
@@ -54,16 +56,21 @@ def _varies(img: np.ndarray, lo: np.ndarray, hi: np.ndarray, forward: bool) -> n
     H, W = img.shape
     rows, cols = np.arange(H), np.arange(W)[None, :]
     # repeat the segment's edge pixel past it: plain shifted windows are then cut windows
-    if forward:
+    if (lo == 0).all() and (hi == W).all():  # whole rows: the image's own edges cut
+        v = img
+    elif forward:
         edge = img[rows, np.maximum(hi - 1, 0)][:, None]
         v = np.where(cols >= hi[:, None], edge, img)
-        a, b, c = v, np.c_[v[:, 1:], v[:, -1:]], np.c_[v[:, 2:], v[:, -1:], v[:, -1:]]
     else:
         edge = img[rows, np.minimum(lo, W - 1)][:, None]
         v = np.where(cols < lo[:, None], edge, img)
-        a, b, c = v, np.c_[v[:, :1], v[:, :-1]], np.c_[v[:, :1], v[:, :1], v[:, :-2]]
-    mn = np.minimum(np.minimum(a, b), c)
-    mx = np.maximum(np.maximum(a, b), c)
+    def shifted(a):  # a[x + 1] (forward) or a[x - 1], the last (first) pixel repeated
+        return np.c_[a[:, 1:], a[:, -1:]] if forward else np.c_[a[:, :1], a[:, :-1]]
+
+    b = shifted(v)
+    c = shifted(b)
+    mn = np.minimum(np.minimum(v, b), c)
+    mx = np.maximum(np.maximum(v, b), c)
     return mx - mn >= VARIATION_THRESHOLD  # uint8: mx >= mn, no wrap
 
 
