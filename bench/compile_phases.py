@@ -12,7 +12,8 @@ single-threaded):
   LLVM work: IR parsing, per-function optimisation (``_optimize_functions``), the final
   module's optimisation after its callees are linked in (``_optimize_final_module``),
   machine-code generation (``_finalize_specific``: MCJIT's ``finalize_object``) and the
-  on-disk cache's writes.
+  on-disk cache. "cache: look up" outside any kernel is mostly numba's first refresh of its
+  registries (it imports ``scipy.linalg`` for its BLAS check), paid once per process.
 
     .venv/bin/python bench/compile_phases.py [--repeats 3] [--max-disparity 80]
         [--options '{"subpixel": "none"}'] [--top 25]
