@@ -10,8 +10,11 @@ Modules, in the order the matcher uses them:
   the constants both solvers share;
 - :mod:`.matcher`: all rows of an image pair (on threads), masks and disparity window, for
   the paper's single-pixel costs;
-- :mod:`.aggregate`: the default matcher on window-summed costs with slant steps, driving
+- :mod:`.aggregate`: the default matcher on window-summed costs with slant steps: per-row
+  geometry, penalties and rewards for the whole image in numpy (:mod:`.blocks`), then
   :mod:`.lanes` (blocks of rows in lockstep, rows as the SIMD axis via :mod:`.simd`);
+- :mod:`.minmax`: ``min``/``max`` emitted inline (the builtins compile a function per type
+  pair: cold start);
 - :mod:`.rows`: the same programme one row at a time, used by :mod:`.vertical` (the
   ``column_smoothing`` option: costs smoothed along the columns first);
 - :mod:`.postprocess`: the paper's propagation across scanlines and mode filters;
