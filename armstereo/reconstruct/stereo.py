@@ -479,54 +479,73 @@ def _hidden_by_nearer(disp: np.ndarray, margin: float) -> np.ndarray:
 
 def _flat_rejected(disp: np.ndarray, flat: np.ndarray, column_support: bool) -> np.ndarray:
     """Flat pixels that keep no disparity: unsupported along their row and, with
-    ``column_support``, also along their column (:func:`_unsupported` on the transpose)."""
-    rejected = _unsupported(disp, flat, FLAT_TOLERANCE)
-    if column_support:
-        # C-ordered copies: _unsupported works on flat (row-major) indices
-        rejected &= _unsupported(np.ascontiguousarray(disp.T), np.ascontiguousarray(flat.T),
-                                 FLAT_TOLERANCE).T
-    return rejected
+    ``column_support``, also along their column (:func:`_unsupported`)."""
+    return _unsupported(disp, flat, FLAT_TOLERANCE, columns=column_support)
 
 
-def _unsupported(disp: np.ndarray, flat: np.ndarray, tolerance: float) -> np.ndarray:
+def _unsupported(disp: np.ndarray, flat: np.ndarray, tolerance: float,
+                 columns: bool = False) -> np.ndarray:
     """Flat pixels whose disparity their row's textured surroundings do not confirm.
 
     A flat pixel is kept only when the nearest textured pixels with a disparity to its left
     and to its right on the same row both exist, differ by at most ``tolerance`` plus
     FLAT_SLOPE per pixel between them, and its disparity lies between theirs (+-
     ``tolerance``): a plain wall between two edges of the same surface, not a gap or a
-    background that the programme had to invent a disparity for.
+    background that the programme had to invent a disparity for. With ``columns``, a flat
+    pixel its row rejects is still kept when the same test along its column (above and below
+    it) confirms it.
     """
-    H, W = disp.shape
     finite = np.isfinite(disp)
     query = flat & finite  # the only pixels that can be kept
     out = flat & ~finite
     at = np.flatnonzero(query)  # intp: take() converts any other index type first
     if at.size == 0:
         return out
-    # One running maximum along each row finds, for every pixel, the nearest pixel at or left
-    # of it that is an anchor (textured, with a disparity) or a break (no disparity), coded
-    # 2 i + 1 or 2 i by its flat index i (none: a break just before the row). Likewise to the
-    # right with a running minimum, codes 2 i or 2 i + 1 (none: a break just after the row).
-    # code >> 1 is the flat index, the low bit tells which of the two it is.
-    twice = np.arange(0, 2 * W, 2, dtype=np.int32)
-    row = np.arange(0, 2 * H * W, 2 * W, dtype=np.int32)[:, None]
-    event = ~query
     anchor = ~flat & finite
-    code = (twice + 2 + anchor) * event + (row - 2)
-    lq = np.maximum.accumulate(code, axis=1, out=code).ravel().take(at)
-    code = (twice - anchor - 2 * W) * event + (row + 2 * W + 1)
-    rq = np.minimum.accumulate(code[:, ::-1], axis=1)[:, ::-1].ravel().take(at)
+    at = at[~_confirmed(disp, query, anchor, at, 1, tolerance)]
+    if columns and at.size:  # only the row's rejects need their column
+        at = at[~_confirmed(disp, query, anchor, at, 0, tolerance)]
+    out.ravel()[at] = True
+    return out
+
+
+def _confirmed(disp: np.ndarray, query: np.ndarray, anchor: np.ndarray, at: np.ndarray,
+               axis: int, tolerance: float) -> np.ndarray:
+    """The test of :func:`_unsupported` along ``axis`` (1: rows, 0: columns) for the pixels of
+    flat index ``at`` (row-major): True where confirmed. ``anchor``: textured pixels with a
+    disparity; ``query``: flat pixels with a disparity, transparent to the search (neither
+    anchor nor break); any other pixel breaks the run."""
+    n = disp.shape[axis]  # pixels along the line
+    stride = 1 if axis == 1 else disp.shape[1]  # flat-index step along the line
+    dtype = np.int16 if 2 * n + 3 <= np.iinfo(np.int16).max else np.int32
+    # One running maximum along each line finds, for every pixel, the nearest pixel at or
+    # before it (position p) that is an anchor or a break, coded 2 (p + 1) + 1 or 2 (p + 1)
+    # (none: a break at p = -1, code 0). Likewise after it with a running minimum, codes
+    # 2 (p + 1) or 2 (p + 1) + 1 (none: a break at p = n). (code >> 1) - 1 is the position,
+    # the low bit tells which of the two it is.
+    pos2 = np.arange(2, 2 * n + 2, 2, dtype=dtype).reshape((1, n) if axis == 1 else (n, 1))
+    code = np.add(pos2, anchor, dtype=dtype)
+    np.copyto(code, 0, where=query)
+    lq = np.maximum.accumulate(code, axis=axis, out=code).ravel().take(at)
+    code = np.subtract(pos2 + 1, anchor, dtype=dtype)
+    np.copyto(code, 2 * n + 3, where=query)
+    back = code[:, ::-1] if axis == 1 else code[::-1]
+    np.minimum.accumulate(back, axis=axis, out=back)
+    rq = code.ravel().take(at)
     has_left = (lq & 1).astype(np.bool_)
     has_right = ~(rq & 1).astype(np.bool_)
     lq >>= 1  # the anchor where it exists, else the break where the run of disparities starts
+    lq -= 1
     rq >>= 1  # ... and where it stops
-    left = np.where(has_left, lq, at)
-    right = np.where(has_right, rq, at)
+    rq -= 1
+    p = at % n if axis == 1 else at // stride  # the pixel's own position on its line
+    left = np.where(has_left, lq, p)
+    right = np.where(has_right, rq, p)
+    start = at - p * stride  # flat index of the line's first pixel
     flat_d = disp.ravel()
     nan = np.float32(np.nan)
-    d_left = np.where(has_left, flat_d.take(left), nan)
-    d_right = np.where(has_right, flat_d.take(right), nan)
+    d_left = np.where(has_left, flat_d.take(start + left * stride), nan)
+    d_right = np.where(has_right, flat_d.take(start + right * stride), nan)
     # a pixel squeezed between the run's end and an anchor within a texture window of it
     # needs that anchor only
     near = 2 * TEXTURE_WINDOW
@@ -535,11 +554,9 @@ def _unsupported(disp: np.ndarray, flat: np.ndarray, tolerance: float) -> np.nda
     d = flat_d.take(at)
     with np.errstate(invalid="ignore"):
         span = tolerance + FLAT_SLOPE * (right - left)  # a slanted surface may change
-        ok = (np.abs(d_left - d_right) <= span) & (
+        return (np.abs(d_left - d_right) <= span) & (
             d >= np.fmin(d_left, d_right) - tolerance) & (
             d <= np.fmax(d_left, d_right) + tolerance)
-    out.ravel()[at] = ~ok
-    return out
 
 
 def _texture_strength(grey: np.ndarray) -> np.ndarray:
