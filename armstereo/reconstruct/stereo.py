@@ -115,6 +115,13 @@ SPECKLE_RANGE = 2.0  # pixels of disparity
 SMOOTHING_SCALE = 3
 CONSENSUS_SIZE = 9  # pixels: side of the consensus median's square
 CONSENSUS_LEVELS = 254  # distinct disparity codes of the consensus median (uint8, 0 = NaN)
+# consensus squares from this side on: the median only where it can change the answer (below,
+# OpenCV's sorting network is cheaper); up to the side whose block counts fit uint16 easily
+CONSENSUS_BOUNDED = 7
+CONSENSUS_BOUNDED_MAX = 13  # (5 x 5 blocks: their counts, at most 9 each, fit in uint8)
+CONSENSUS_SHARE = 0.1  # more undecided pixels than this share: the whole-image median
+CONSENSUS_MARGIN = 1e-3  # codes: narrows the acceptable codes beyond float32 rounding
+CONSENSUS_REACH = 512  # codes: max_diff / step at most this for float32 bounds below 1024
 MEDIAN_SIZE = 5
 OCCLUSION_MARGIN = 1.0  # pixels: see _hidden_by_nearer
 FLAT_TOLERANCE = 1.0  # pixels: see _unsupported
@@ -574,19 +581,92 @@ def _replace_outliers(disp: np.ndarray, size: int, dmin: int, dmax: int,
     around them take that median (in place): a streak a few rows high, or a blob, that
     disagrees with the surface around it is replaced by what the surface says.
 
-    The median runs on a uint8 copy (OpenCV's any-size median): whole disparities above
-    ``dmin``, or pairs of them where the window holds more than CONSENSUS_LEVELS values;
-    NaN is code 0 and a window whose median is NaN changes nothing.
+    The median is that of a uint8 copy (OpenCV's any-size median, replicated border): whole
+    disparities above ``dmin``, or pairs of them where the window holds more than
+    CONSENSUS_LEVELS values; NaN is code 0 and a window whose median is NaN changes nothing.
+    From CONSENSUS_BOUNDED on, the median is computed only at the pixels where bounds from
+    3x3 blocks (:func:`_undecided`) allow it to change the answer: the same result, without
+    the whole-image median of a large square (its cost grows with the side).
     """
     ok = np.isfinite(disp)
     step = max(1, -(-(dmax + 1) // CONSENSUS_LEVELS))  # disparities per code
     code = np.zeros(disp.shape, np.uint8)
     code[ok] = np.rint((disp[ok] - dmin) / step).astype(np.uint8) + 1
-    med = cv2.medianBlur(code, size)
+    at = None
+    if (CONSENSUS_BOUNDED <= size <= CONSENSUS_BOUNDED_MAX and disp.flags.c_contiguous
+            and max_diff <= CONSENSUS_REACH * step):
+        r = size // 2
+        padded = cv2.copyMakeBorder(code, r, r, r, r, cv2.BORDER_REPLICATE)
+        at = np.flatnonzero(_undecided(padded, disp, ok, size, step, dmin, max_diff))
+        if at.size > CONSENSUS_SHARE * disp.size:
+            at = None  # the whole-image median is cheaper
+    if at is None:
+        med = cv2.medianBlur(code, size)
+        medd = (med.astype(np.float32) - 1) * np.float32(step) + np.float32(dmin)
+        with np.errstate(invalid="ignore"):
+            outlier = ok & (med > 0) & (np.abs(disp - medd) > max_diff)
+        disp[outlier] = medd[outlier]
+        return
+    med = _window_median(padded, at, size, disp.shape[1])
     medd = (med.astype(np.float32) - 1) * np.float32(step) + np.float32(dmin)
-    with np.errstate(invalid="ignore"):
-        outlier = ok & (med > 0) & (np.abs(disp - medd) > max_diff)
-    disp[outlier] = medd[outlier]
+    flat = disp.ravel()  # a view: disp is C-contiguous
+    outlier = (med > 0) & (np.abs(flat.take(at) - medd) > max_diff)
+    flat[at[outlier]] = medd[outlier]
+
+
+def _undecided(padded: np.ndarray, disp: np.ndarray, ok: np.ndarray, size: int, step: int,
+               dmin: int, max_diff: float) -> np.ndarray:
+    """(H, W) bool: answered pixels whose ``size`` median (of the uint8 codes ``padded``,
+    replicated by ``size // 2`` on each side) might lie more than ``max_diff`` from their
+    disparity; the median cannot change any other pixel.
+
+    The median exceeds the highest acceptable code ``b`` only if half the window's codes
+    do. The window is covered by 3x3 blocks; a block holds at most 9 codes above ``b`` when
+    its median is above it, at most 4 when only its maximum is, else none: when these
+    counts stay below half the window, the median is at most ``b``. Likewise below the
+    lowest acceptable code ``a`` with the blocks' minima (NaN, code 0, counts as below).
+    ``a`` and ``b`` are narrowed by CONSENSUS_MARGIN codes, more than float32 rounding
+    here and in the test itself, so that a pixel passed over can never change.
+    """
+    H, W = disp.shape
+    r = size // 2
+    kernel = np.ones((3, 3), np.uint8)
+    hi, lo, mid = cv2.dilate(padded, kernel), cv2.erode(padded, kernel), cv2.medianBlur(padded, 3)
+    x = disp - np.float32(dmin)  # exact (disp >= dmin - 1); NaN stays NaN, masked by ok
+    if step != 1:
+        x /= np.float32(step)
+    reach = max_diff / step  # codes
+    b = np.floor(x + np.float32(reach + 1 - CONSENSUS_MARGIN))  # highest acceptable code
+    a = np.ceil(x + np.float32(1 - reach + CONSENSUS_MARGIN), out=x)  # lowest
+    # clamped below at 0 (a median at or below 0 changes nothing), saturated at 255
+    b = cv2.convertScaleAbs(np.maximum(b, 0, out=b))
+    a = cv2.convertScaleAbs(np.maximum(a, 0, out=a))
+    counts = [np.zeros((H, W), np.uint8) for _ in range(4)]  # max > b, mid > b, min < a, mid < a
+    tests = ((hi, b, cv2.CMP_GT), (mid, b, cv2.CMP_GT), (lo, a, cv2.CMP_LT), (mid, a, cv2.CMP_LT))
+    centres = list(range(-(r - 1), r - 1, 3)) + [r - 1]  # 3x3 blocks covering the window
+    for dy in centres:
+        for dx in centres:
+            rows, cols = slice(r + dy, r + dy + H), slice(r + dx, r + dx + W)
+            for count, (image, bound, cmp) in zip(counts, tests, strict=True):
+                # 255 where true: subtracting it adds one (uint8 wraps)
+                np.subtract(count, cv2.compare(image[rows, cols], bound, cmp), out=count)
+    half = size * size // 2 + 1  # codes beyond a bound that move the median past it
+    high = cv2.addWeighted(counts[0], 4, counts[1], 5, 0, dtype=cv2.CV_16U) >= half
+    low = cv2.addWeighted(counts[2], 4, counts[3], 5, 0, dtype=cv2.CV_16U) >= half
+    high |= low
+    high &= ok
+    return high
+
+
+def _window_median(padded: np.ndarray, at: np.ndarray, size: int, width: int) -> np.ndarray:
+    """Medians of the ``size`` squares around the pixels of flat index ``at`` (of an image
+    ``width`` wide; ``padded``: its uint8 codes replicated by ``size // 2`` on each side)."""
+    y, x = np.divmod(at, width)
+    windows = np.lib.stride_tricks.sliding_window_view(padded, (size, size))[y, x]
+    middle = size * size // 2
+    # int16: numpy's partition has a vectorised path for it, none for uint8
+    windows = windows.reshape(len(at), size * size).astype(np.int16)
+    return np.partition(windows, middle, axis=1)[:, middle]
 
 
 def _remove_speckles(disp: np.ndarray, size: int, max_diff: float) -> None:
