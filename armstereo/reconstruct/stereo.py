@@ -590,8 +590,10 @@ def _replace_outliers(disp: np.ndarray, size: int, dmin: int, dmax: int,
     """
     ok = np.isfinite(disp)
     step = max(1, -(-(dmax + 1) // CONSENSUS_LEVELS))  # disparities per code
-    code = np.zeros(disp.shape, np.uint8)
-    code[ok] = np.rint((disp[ok] - dmin) / step).astype(np.uint8) + 1
+    with np.errstate(invalid="ignore"):  # NaN's code is set below
+        code = np.rint((disp - dmin) / step).astype(np.uint8)
+    code += 1
+    np.multiply(code, ok, out=code)  # NaN: 0
     at = None
     if (CONSENSUS_BOUNDED <= size <= CONSENSUS_BOUNDED_MAX and disp.flags.c_contiguous
             and max_diff <= CONSENSUS_REACH * step):
