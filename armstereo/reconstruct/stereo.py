@@ -500,7 +500,7 @@ def _unsupported(disp: np.ndarray, flat: np.ndarray, tolerance: float,
     ``tolerance``): a plain wall between two edges of the same surface, not a gap or a
     background that the programme had to invent a disparity for. With ``columns``, a flat
     pixel its row rejects is still kept when the same test along its column (above and below
-    it) confirms it.
+    it) confirms it. ``tolerance`` >= 0.
     """
     finite = np.isfinite(disp)
     query = flat & finite  # the only pixels that can be kept
@@ -509,61 +509,57 @@ def _unsupported(disp: np.ndarray, flat: np.ndarray, tolerance: float,
     if at.size == 0:
         return out
     anchor = ~flat & finite
-    at = at[~_confirmed(disp, query, anchor, at, 1, tolerance)]
+    lo, hi, first, last = _run_bounds(disp, query, anchor, tolerance)
+    d = disp.ravel().take(at)
+    count = last - first + 1  # at lists the runs' pixels in order
+    at = at[~((d >= np.repeat(lo, count)) & (d <= np.repeat(hi, count)))]
     if columns and at.size:  # only the row's rejects need their column
-        at = at[~_confirmed(disp, query, anchor, at, 0, tolerance)]
+        H, W = disp.shape
+        lo, hi, first, _ = _run_bounds(np.ascontiguousarray(disp.T),
+                                       np.ascontiguousarray(query.T),
+                                       np.ascontiguousarray(anchor.T), tolerance)
+        y, x = np.divmod(at, W)
+        run = np.searchsorted(first, x * H + y, side="right") - 1  # in the transpose
+        d = disp.ravel().take(at)
+        at = at[~((d >= lo.take(run)) & (d <= hi.take(run)))]
     out.ravel()[at] = True
     return out
 
 
-def _confirmed(disp: np.ndarray, query: np.ndarray, anchor: np.ndarray, at: np.ndarray,
-               axis: int, tolerance: float) -> np.ndarray:
-    """The test of :func:`_unsupported` along ``axis`` (1: rows, 0: columns) for the pixels of
-    flat index ``at`` (row-major): True where confirmed. ``anchor``: textured pixels with a
-    disparity; ``query``: flat pixels with a disparity, transparent to the search (neither
-    anchor nor break); any other pixel breaks the run."""
-    n = disp.shape[axis]  # pixels along the line
-    stride = 1 if axis == 1 else disp.shape[1]  # flat-index step along the line
-    dtype = np.int16 if 2 * n + 3 <= np.iinfo(np.int16).max else np.int32
-    # One running maximum along each line finds, for every pixel, the nearest pixel at or
-    # before it (position p) that is an anchor or a break, coded 2 (p + 1) + 1 or 2 (p + 1)
-    # (none: a break at p = -1, code 0). Likewise after it with a running minimum, codes
-    # 2 (p + 1) or 2 (p + 1) + 1 (none: a break at p = n). (code >> 1) - 1 is the position,
-    # the low bit tells which of the two it is.
-    pos2 = np.arange(2, 2 * n + 2, 2, dtype=dtype).reshape((1, n) if axis == 1 else (n, 1))
-    code = np.add(pos2, anchor, dtype=dtype)
-    np.copyto(code, 0, where=query)
-    lq = np.maximum.accumulate(code, axis=axis, out=code).ravel().take(at)
-    code = np.subtract(pos2 + 1, anchor, dtype=dtype)
-    np.copyto(code, 2 * n + 3, where=query)
-    back = code[:, ::-1] if axis == 1 else code[::-1]
-    np.minimum.accumulate(back, axis=axis, out=back)
-    rq = code.ravel().take(at)
-    has_left = (lq & 1).astype(np.bool_)
-    has_right = ~(rq & 1).astype(np.bool_)
-    lq >>= 1  # the anchor where it exists, else the break where the run of disparities starts
-    lq -= 1
-    rq >>= 1  # ... and where it stops
-    rq -= 1
-    p = at % n if axis == 1 else at // stride  # the pixel's own position on its line
-    left = np.where(has_left, lq, p)
-    right = np.where(has_right, rq, p)
-    start = at - p * stride  # flat index of the line's first pixel
-    flat_d = disp.ravel()
+def _run_bounds(disp: np.ndarray, query: np.ndarray, anchor: np.ndarray,
+                tolerance: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The row test of :func:`_unsupported`, once per run of ``query`` pixels (flat pixels
+    with a disparity) on a row: ``(lo, hi, first, last)``, a pixel of the run is confirmed
+    when its disparity lies in ``[lo, hi]`` (NaN: none is); ``first``/``last``: the run's
+    flat indices. ``anchor``: textured pixels with a disparity.
+
+    The nearest anchor-or-break left of a run's pixel is the pixel before the run, the
+    nearest right of it the pixel after it (any pixel that is not a query is one or the
+    other): a run has an anchor on both sides (their disparities must agree), on one side
+    only (enough when the other end of the run is a break within two texture windows of
+    it), or none."""
+    W = query.shape[1]
+    begins = query.copy()
+    begins[:, 1:] &= ~query[:, :-1]
+    ends = query.copy()
+    ends[:, :-1] &= ~query[:, 1:]
+    first, last = np.flatnonzero(begins), np.flatnonzero(ends)
+    left, right = first - 1, last + 1  # -1 or past the end: masked by the row tests
+    marks, flat_d = anchor.ravel(), disp.ravel()
+    has_left = (first % W != 0) & marks.take(left, mode="wrap")
+    has_right = (right % W != 0) & marks.take(right, mode="wrap")
     nan = np.float32(np.nan)
-    d_left = np.where(has_left, flat_d.take(start + left * stride), nan)
-    d_right = np.where(has_right, flat_d.take(start + right * stride), nan)
-    # a pixel squeezed between the run's end and an anchor within a texture window of it
-    # needs that anchor only
-    near = 2 * TEXTURE_WINDOW
-    d_left = np.where(~has_left & (right - lq <= near), d_right, d_left)
-    d_right = np.where(~has_right & (rq - left <= near), d_left, d_right)
-    d = flat_d.take(at)
+    d_left = np.where(has_left, flat_d.take(left, mode="wrap"), nan)
+    d_right = np.where(has_right, flat_d.take(right, mode="wrap"), nan)
+    # a run between a break and an anchor within two texture windows needs that anchor only
+    near = right - left <= 2 * TEXTURE_WINDOW
+    d_left = np.where(~has_left & near, d_right, d_left)
+    d_right = np.where(~has_right & near, d_left, d_right)
     with np.errstate(invalid="ignore"):
         span = tolerance + FLAT_SLOPE * (right - left)  # a slanted surface may change
-        return (np.abs(d_left - d_right) <= span) & (
-            d >= np.fmin(d_left, d_right) - tolerance) & (
-            d <= np.fmax(d_left, d_right) + tolerance)
+        agree = np.abs(d_left - d_right) <= span
+    lo = np.where(agree, np.fmin(d_left, d_right) - tolerance, nan)
+    return lo, np.fmax(d_left, d_right) + tolerance, first, last
 
 
 def _texture_strength(grey: np.ndarray) -> np.ndarray:
