@@ -116,8 +116,8 @@ SMOOTHING_SCALE = 3
 CONSENSUS_SIZE = 9  # pixels: side of the consensus median's square
 CONSENSUS_LEVELS = 254  # distinct disparity codes of the consensus median (uint8, 0 = NaN)
 # consensus squares from this side on: the median only where it can change the answer (below,
-# OpenCV's sorting network is cheaper), up to the side whose weighted block counts (5 x 5
-# blocks, at most 9 each) fit in uint8
+# OpenCV's sorting network is cheaper), up to the largest side checked against the whole-image
+# median (the per-block counters are uint8: at most 255 blocks)
 CONSENSUS_BOUNDED = 7
 CONSENSUS_BOUNDED_MAX = 13
 CONSENSUS_SHARE = 0.1  # more undecided pixels than this share: the whole-image median
