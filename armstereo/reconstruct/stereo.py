@@ -635,11 +635,11 @@ def _undecided(padded: np.ndarray, disp: np.ndarray, ok: np.ndarray, size: int, 
     if step != 1:
         x /= np.float32(step)
     reach = max_diff / step  # codes
-    b = np.floor(x + np.float32(reach + 1 - CONSENSUS_MARGIN))  # highest acceptable code
-    a = np.ceil(x + np.float32(1 - reach + CONSENSUS_MARGIN), out=x)  # lowest
-    # clamped below at 0 (a median at or below 0 changes nothing), saturated at 255
-    b = cv2.convertScaleAbs(np.maximum(b, 0, out=b))
-    a = cv2.convertScaleAbs(np.maximum(a, 0, out=a))
+    # highest and lowest acceptable codes, floor(x + reach + 1) and ceil(x - reach + 1) as
+    # rounding (ties to even) of half a code less and more, clamped to 0..255 (a median at
+    # or below 0 changes nothing): uint8 saturation
+    b = cv2.add(x, reach + 0.5 - CONSENSUS_MARGIN, dtype=cv2.CV_8U)
+    a = cv2.add(x, 1.5 - reach + CONSENSUS_MARGIN, dtype=cv2.CV_8U)
     counts = [np.zeros((H, W), np.uint8) for _ in range(4)]  # max > b, mid > b, min < a, mid < a
     tests = ((hi, b, cv2.CMP_GT), (mid, b, cv2.CMP_GT), (lo, a, cv2.CMP_LT), (mid, a, cv2.CMP_LT))
     centres = list(range(-(r - 1), r - 1, 3)) + [r - 1]  # 3x3 blocks covering the window
