@@ -115,6 +115,14 @@ SPECKLE_RANGE = 2.0  # pixels of disparity
 SMOOTHING_SCALE = 3
 CONSENSUS_SIZE = 9  # pixels: side of the consensus median's square
 CONSENSUS_LEVELS = 254  # distinct disparity codes of the consensus median (uint8, 0 = NaN)
+# consensus squares from this side on: the median only where it can change the answer (below,
+# OpenCV's sorting network is cheaper), up to the largest side checked against the whole-image
+# median (the per-block counters are uint8: at most 255 blocks)
+CONSENSUS_BOUNDED = 7
+CONSENSUS_BOUNDED_MAX = 13
+CONSENSUS_SHARE = 0.1  # more undecided pixels than this share: the whole-image median
+CONSENSUS_MARGIN = 1e-3  # codes: narrows the acceptable codes beyond float32 rounding
+CONSENSUS_REACH = 512  # codes: max_diff / step at most this for float32 bounds below 1024
 MEDIAN_SIZE = 5
 OCCLUSION_MARGIN = 1.0  # pixels: see _hidden_by_nearer
 FLAT_TOLERANCE = 1.0  # pixels: see _unsupported
@@ -479,67 +487,80 @@ def _hidden_by_nearer(disp: np.ndarray, margin: float) -> np.ndarray:
 
 def _flat_rejected(disp: np.ndarray, flat: np.ndarray, column_support: bool) -> np.ndarray:
     """Flat pixels that keep no disparity: unsupported along their row and, with
-    ``column_support``, also along their column (:func:`_unsupported` on the transpose)."""
-    rejected = _unsupported(disp, flat, FLAT_TOLERANCE)
-    if column_support:
-        # C-ordered copies: _unsupported works on flat (row-major) indices
-        rejected &= _unsupported(np.ascontiguousarray(disp.T), np.ascontiguousarray(flat.T),
-                                 FLAT_TOLERANCE).T
-    return rejected
+    ``column_support``, also along their column (:func:`_unsupported`)."""
+    return _unsupported(disp, flat, FLAT_TOLERANCE, columns=column_support)
 
 
-def _unsupported(disp: np.ndarray, flat: np.ndarray, tolerance: float) -> np.ndarray:
+def _unsupported(disp: np.ndarray, flat: np.ndarray, tolerance: float,
+                 columns: bool = False) -> np.ndarray:
     """Flat pixels whose disparity their row's textured surroundings do not confirm.
 
     A flat pixel is kept only when the nearest textured pixels with a disparity to its left
     and to its right on the same row both exist, differ by at most ``tolerance`` plus
     FLAT_SLOPE per pixel between them, and its disparity lies between theirs (+-
     ``tolerance``): a plain wall between two edges of the same surface, not a gap or a
-    background that the programme had to invent a disparity for.
+    background that the programme had to invent a disparity for. With ``columns``, a flat
+    pixel its row rejects is still kept when the same test along its column (above and below
+    it) confirms it. ``tolerance`` >= 0.
     """
-    H, W = disp.shape
     finite = np.isfinite(disp)
     query = flat & finite  # the only pixels that can be kept
     out = flat & ~finite
     at = np.flatnonzero(query)  # intp: take() converts any other index type first
     if at.size == 0:
         return out
-    # One running maximum along each row finds, for every pixel, the nearest pixel at or left
-    # of it that is an anchor (textured, with a disparity) or a break (no disparity), coded
-    # 2 i + 1 or 2 i by its flat index i (none: a break just before the row). Likewise to the
-    # right with a running minimum, codes 2 i or 2 i + 1 (none: a break just after the row).
-    # code >> 1 is the flat index, the low bit tells which of the two it is.
-    twice = np.arange(0, 2 * W, 2, dtype=np.int32)
-    row = np.arange(0, 2 * H * W, 2 * W, dtype=np.int32)[:, None]
-    event = ~query
     anchor = ~flat & finite
-    code = (twice + 2 + anchor) * event + (row - 2)
-    lq = np.maximum.accumulate(code, axis=1, out=code).ravel().take(at)
-    code = (twice - anchor - 2 * W) * event + (row + 2 * W + 1)
-    rq = np.minimum.accumulate(code[:, ::-1], axis=1)[:, ::-1].ravel().take(at)
-    has_left = (lq & 1).astype(np.bool_)
-    has_right = ~(rq & 1).astype(np.bool_)
-    lq >>= 1  # the anchor where it exists, else the break where the run of disparities starts
-    rq >>= 1  # ... and where it stops
-    left = np.where(has_left, lq, at)
-    right = np.where(has_right, rq, at)
-    flat_d = disp.ravel()
+    lo, hi, first, last = _run_bounds(disp, query, anchor, tolerance)
+    d = disp.ravel().take(at)
+    count = last - first + 1  # at lists the runs' pixels in order
+    at = at[~((d >= np.repeat(lo, count)) & (d <= np.repeat(hi, count)))]
+    if columns and at.size:  # only the row's rejects need their column
+        H, W = disp.shape
+        lo, hi, first, _ = _run_bounds(np.ascontiguousarray(disp.T),
+                                       np.ascontiguousarray(query.T),
+                                       np.ascontiguousarray(anchor.T), tolerance)
+        y, x = np.divmod(at, W)
+        run = np.searchsorted(first, x * H + y, side="right") - 1  # in the transpose
+        d = disp.ravel().take(at)
+        at = at[~((d >= lo.take(run)) & (d <= hi.take(run)))]
+    out.ravel()[at] = True
+    return out
+
+
+def _run_bounds(disp: np.ndarray, query: np.ndarray, anchor: np.ndarray,
+                tolerance: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The row test of :func:`_unsupported`, once per run of ``query`` pixels (flat pixels
+    with a disparity) on a row: ``(lo, hi, first, last)``, a pixel of the run is confirmed
+    when its disparity lies in ``[lo, hi]`` (NaN: none is); ``first``/``last``: the run's
+    flat indices. ``anchor``: textured pixels with a disparity.
+
+    The nearest anchor-or-break left of a run's pixel is the pixel before the run, the
+    nearest right of it the pixel after it (any pixel that is not a query is one or the
+    other): a run has an anchor on both sides (their disparities must agree), on one side
+    only (enough when the other end of the run is a break within two texture windows of
+    it), or none."""
+    W = query.shape[1]
+    begins = query.copy()
+    begins[:, 1:] &= ~query[:, :-1]
+    ends = query.copy()
+    ends[:, :-1] &= ~query[:, 1:]
+    first, last = np.flatnonzero(begins), np.flatnonzero(ends)
+    left, right = first - 1, last + 1  # -1 or past the end: masked by the row tests
+    marks, flat_d = anchor.ravel(), disp.ravel()
+    has_left = (first % W != 0) & marks.take(left, mode="wrap")
+    has_right = (right % W != 0) & marks.take(right, mode="wrap")
     nan = np.float32(np.nan)
-    d_left = np.where(has_left, flat_d.take(left), nan)
-    d_right = np.where(has_right, flat_d.take(right), nan)
-    # a pixel squeezed between the run's end and an anchor within a texture window of it
-    # needs that anchor only
-    near = 2 * TEXTURE_WINDOW
-    d_left = np.where(~has_left & (right - lq <= near), d_right, d_left)
-    d_right = np.where(~has_right & (rq - left <= near), d_left, d_right)
-    d = flat_d.take(at)
+    d_left = np.where(has_left, flat_d.take(left, mode="wrap"), nan)
+    d_right = np.where(has_right, flat_d.take(right, mode="wrap"), nan)
+    # a run between a break and an anchor within two texture windows needs that anchor only
+    near = right - left <= 2 * TEXTURE_WINDOW
+    d_left = np.where(~has_left & near, d_right, d_left)
+    d_right = np.where(~has_right & near, d_left, d_right)
     with np.errstate(invalid="ignore"):
         span = tolerance + FLAT_SLOPE * (right - left)  # a slanted surface may change
-        ok = (np.abs(d_left - d_right) <= span) & (
-            d >= np.fmin(d_left, d_right) - tolerance) & (
-            d <= np.fmax(d_left, d_right) + tolerance)
-    out.ravel()[at] = ~ok
-    return out
+        agree = np.abs(d_left - d_right) <= span
+    lo = np.where(agree, np.fmin(d_left, d_right) - tolerance, nan)
+    return lo, np.fmax(d_left, d_right) + tolerance, first, last
 
 
 def _texture_strength(grey: np.ndarray) -> np.ndarray:
@@ -557,19 +578,94 @@ def _replace_outliers(disp: np.ndarray, size: int, dmin: int, dmax: int,
     around them take that median (in place): a streak a few rows high, or a blob, that
     disagrees with the surface around it is replaced by what the surface says.
 
-    The median runs on a uint8 copy (OpenCV's any-size median): whole disparities above
-    ``dmin``, or pairs of them where the window holds more than CONSENSUS_LEVELS values;
-    NaN is code 0 and a window whose median is NaN changes nothing.
+    The median is that of a uint8 copy (OpenCV's any-size median, replicated border): whole
+    disparities above ``dmin``, or pairs of them where the window holds more than
+    CONSENSUS_LEVELS values; NaN is code 0 and a window whose median is NaN changes nothing.
+    From CONSENSUS_BOUNDED on, the median is computed only at the pixels where bounds from
+    3x3 blocks (:func:`_undecided`) allow it to change the answer: the same result, without
+    the whole-image median of a large square (its cost grows with the side).
     """
     ok = np.isfinite(disp)
     step = max(1, -(-(dmax + 1) // CONSENSUS_LEVELS))  # disparities per code
-    code = np.zeros(disp.shape, np.uint8)
-    code[ok] = np.rint((disp[ok] - dmin) / step).astype(np.uint8) + 1
-    med = cv2.medianBlur(code, size)
+    with np.errstate(invalid="ignore"):  # NaN's code is set below
+        code = np.rint((disp - dmin) / step).astype(np.uint8)
+    code += 1
+    np.multiply(code, ok, out=code)  # NaN: 0
+    at = None
+    if (CONSENSUS_BOUNDED <= size <= CONSENSUS_BOUNDED_MAX and disp.flags.c_contiguous
+            and max_diff <= CONSENSUS_REACH * step):
+        r = size // 2
+        padded = cv2.copyMakeBorder(code, r, r, r, r, cv2.BORDER_REPLICATE)
+        at = np.flatnonzero(_undecided(padded, disp, ok, size, step, dmin, max_diff))
+        if at.size > CONSENSUS_SHARE * disp.size:
+            at = None  # the whole-image median is cheaper
+    if at is None:
+        med = cv2.medianBlur(code, size)
+        medd = (med.astype(np.float32) - 1) * np.float32(step) + np.float32(dmin)
+        with np.errstate(invalid="ignore"):
+            outlier = ok & (med > 0) & (np.abs(disp - medd) > max_diff)
+        disp[outlier] = medd[outlier]
+        return
+    med = _window_median(padded, at, size, disp.shape[1])
     medd = (med.astype(np.float32) - 1) * np.float32(step) + np.float32(dmin)
-    with np.errstate(invalid="ignore"):
-        outlier = ok & (med > 0) & (np.abs(disp - medd) > max_diff)
-    disp[outlier] = medd[outlier]
+    flat = disp.ravel()  # a view: disp is C-contiguous
+    outlier = (med > 0) & (np.abs(flat.take(at) - medd) > max_diff)
+    flat[at[outlier]] = medd[outlier]
+
+
+def _undecided(padded: np.ndarray, disp: np.ndarray, ok: np.ndarray, size: int, step: int,
+               dmin: int, max_diff: float) -> np.ndarray:
+    """(H, W) bool: answered pixels whose ``size`` median (of the uint8 codes ``padded``,
+    replicated by ``size // 2`` on each side) might lie more than ``max_diff`` from their
+    disparity; the median cannot change any other pixel.
+
+    The median exceeds the highest acceptable code ``b`` only if half the window's codes
+    do. The window is covered by 3x3 blocks; a block holds at most 9 codes above ``b`` when
+    its median is above it, at most 4 when only its maximum is, else none: when these
+    counts stay below half the window, the median is at most ``b``. Likewise below the
+    lowest acceptable code ``a`` with the blocks' minima (NaN, code 0, counts as below).
+    ``a`` and ``b`` are narrowed by CONSENSUS_MARGIN codes, more than float32 rounding
+    here and in the test itself, so that a pixel passed over can never change.
+    """
+    H, W = disp.shape
+    r = size // 2
+    kernel = np.ones((3, 3), np.uint8)
+    hi, lo, mid = cv2.dilate(padded, kernel), cv2.erode(padded, kernel), cv2.medianBlur(padded, 3)
+    x = disp - np.float32(dmin)  # exact (disp >= dmin - 1); NaN stays NaN, masked by ok
+    if step != 1:
+        x /= np.float32(step)
+    reach = max_diff / step  # codes
+    # highest and lowest acceptable codes, floor(x + reach + 1) and ceil(x - reach + 1) as
+    # rounding (ties to even) of half a code less and more, clamped to 0..255 (a median at
+    # or below 0 changes nothing): uint8 saturation
+    b = cv2.add(x, reach + 0.5 - CONSENSUS_MARGIN, dtype=cv2.CV_8U)
+    a = cv2.add(x, 1.5 - reach + CONSENSUS_MARGIN, dtype=cv2.CV_8U)
+    counts = [np.zeros((H, W), np.uint8) for _ in range(4)]  # max > b, mid > b, min < a, mid < a
+    tests = ((hi, b, cv2.CMP_GT), (mid, b, cv2.CMP_GT), (lo, a, cv2.CMP_LT), (mid, a, cv2.CMP_LT))
+    centres = list(range(-(r - 1), r - 1, 3)) + [r - 1]  # 3x3 blocks covering the window
+    for dy in centres:
+        for dx in centres:
+            rows, cols = slice(r + dy, r + dy + H), slice(r + dx, r + dx + W)
+            for count, (image, bound, cmp) in zip(counts, tests, strict=True):
+                # 255 where true: subtracting it adds one (uint8 wraps)
+                np.subtract(count, cv2.compare(image[rows, cols], bound, cmp), out=count)
+    half = size * size // 2 + 1  # codes beyond a bound that move the median past it
+    high = cv2.addWeighted(counts[0], 4, counts[1], 5, 0, dtype=cv2.CV_16U) >= half
+    low = cv2.addWeighted(counts[2], 4, counts[3], 5, 0, dtype=cv2.CV_16U) >= half
+    high |= low
+    high &= ok
+    return high
+
+
+def _window_median(padded: np.ndarray, at: np.ndarray, size: int, width: int) -> np.ndarray:
+    """Medians of the ``size`` squares around the pixels of flat index ``at`` (of an image
+    ``width`` wide; ``padded``: its uint8 codes replicated by ``size // 2`` on each side)."""
+    y, x = np.divmod(at, width)
+    windows = np.lib.stride_tricks.sliding_window_view(padded, (size, size))[y, x]
+    middle = size * size // 2
+    # int16: numpy's partition has a vectorised path for it, none for uint8
+    windows = windows.reshape(len(at), size * size).astype(np.int16)
+    return np.partition(windows, middle, axis=1)[:, middle]
 
 
 def _remove_speckles(disp: np.ndarray, size: int, max_diff: float) -> None:
