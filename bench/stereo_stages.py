@@ -62,7 +62,6 @@ STAGES = [
     ("stereo", "_photo_inconsistent", "photo check"),
     ("stereo", "refine_gradient", "sub-pixel: gradient"),
     ("stereo", "refine_parabola", "sub-pixel: parabola"),
-    ("stereo", "_flat_rejected", "unsupported flat pixels"),
     ("stereo", "_replace_outliers", "consensus median"),
     ("stereo", "_reject", "reject (NaN bookkeeping)"),
     ("stereo", "_remove_speckles", "speckles"),

@@ -294,7 +294,8 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
     reject = idx < 0
     masked = np.where(reject, np.float32(np.nan), dense)  # NaN where rejected so far
     if flat is not None:
-        _reject(masked, reject, _flat_rejected(masked, flat, column_support))
+        _reject(masked, reject, _unsupported(masked, flat, FLAT_TOLERANCE,
+                                             columns=column_support))
     if occlusions == "nan":
         _reject(masked, reject, _hidden_by_nearer(masked, OCCLUSION_MARGIN))
     if lr_check:
@@ -483,12 +484,6 @@ def _hidden_by_nearer(disp: np.ndarray, margin: float) -> np.ndarray:
     with np.errstate(invalid="ignore"):  # NaN compares False
         np.greater_equal(xr[:, :-1], lowest[:, 1:] + margin, out=hidden[:, :-1])
     return hidden
-
-
-def _flat_rejected(disp: np.ndarray, flat: np.ndarray, column_support: bool) -> np.ndarray:
-    """Flat pixels that keep no disparity: unsupported along their row and, with
-    ``column_support``, also along their column (:func:`_unsupported`)."""
-    return _unsupported(disp, flat, FLAT_TOLERANCE, columns=column_support)
 
 
 def _unsupported(disp: np.ndarray, flat: np.ndarray, tolerance: float,

@@ -45,16 +45,6 @@ from armstereo.reconstruct.birchfield.lanes import (
     lane_forward,
 )
 
-# the one-row kernels, re-exported for the matchers that import them from here (.vertical)
-from armstereo.reconstruct.birchfield.rows import (  # noqa: F401, E402
-    _backtrack,
-    _forward,
-    _row_slab,
-    _work_arrays,
-)
-
-SUB_R = 2  # sub-pixel window radius
-
 
 def cost_divisor(width: int, window_pixels: int, occ: int) -> int:
     """Smallest ``q`` keeping every path cost of a row exact in float32 (see the module doc)."""

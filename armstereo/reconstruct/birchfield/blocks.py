@@ -1,9 +1,10 @@
 """The set-up of every block of rows for :mod:`.lanes`, in numpy for the whole image at once.
 
-What :func:`.lanes.lane_setup` computes per block (each row's valid runs and ranges, its
+What each block needs before its programme runs (each row's valid runs and ranges, its
 occlusion penalties and rewards, the reset of its output row) is a few whole-image array
-operations here. It is not where the time goes (a few ms per image), but as numba kernels it
-was about a third of the matcher's first-run compile (bench/results/coldstart.md).
+operations here. It is not where the time goes (a few ms per image), but as a numba kernel
+per block it was about a third of the matcher's first-run compile
+(bench/results/coldstart.md).
 
 The values are those of the kernels: the same integer geometry (:func:`.matcher.longest_run`,
 :func:`.matcher.row_geometry`), the same intensity-variation flags (:func:`.cost.variation_flags`)
@@ -82,7 +83,8 @@ def block_setup(left: np.ndarray, right: np.ndarray, lmask: np.ndarray, rmask: n
     Resets ``disp`` (-1) and ``state`` (INVALID, BORDER on the left valid run) in place.
     Returns ``(geo, pen_l, rew, pen_r, ranges)``: per block ``b``, ``geo[b]`` (GEO, LANES)
     int64, ``pen_l[b]``/``rew[b]`` (W + nd + 2, LANES) and ``pen_r[b]`` (W, LANES) float32
-    as :func:`.lanes.lane_setup` fills them, and ``ranges[b]`` its ``(x_begin, x_end)``.
+    as :func:`.lanes.lane_forward` and :func:`.lanes.lane_backtrack` read them, and
+    ``ranges[b]`` the block's ``(x_begin, x_end)``.
     """
     H, W = lmask.shape
     nb = -(-H // LANES)

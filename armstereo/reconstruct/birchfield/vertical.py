@@ -22,19 +22,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from armstereo.reconstruct.birchfield.aggregate import (
-    _backtrack,
-    _forward,
-    _row_slab,
-    _work_arrays,
-    cost_divisor,
-    fill_outside,
-)
+from armstereo.reconstruct.birchfield.aggregate import cost_divisor, fill_outside
 from armstereo.reconstruct.birchfield.cost import INF, VARIATION_THRESHOLD, variation_flags
 from armstereo.reconstruct.birchfield.dp_exact import MAX_PIXEL_COST
 from armstereo.reconstruct.birchfield.dp_pruned import NO_VARIATION_PENALTY
 from armstereo.reconstruct.birchfield.jit import njit
 from armstereo.reconstruct.birchfield.matcher import _begin_row, _store_row
+from armstereo.reconstruct.birchfield.rows import _backtrack, _forward, _row_slab, _work_arrays
 
 
 @njit(cache=True, inline="always")
@@ -61,9 +55,9 @@ def match_vertical(left3, right3, left, right, lmask, rmask, textured, dmin, nd,
                    slant, p1, p2, scale, q, disp, state, down, work):
     """Match every image row on column-smoothed costs (see the module doc).
 
-    Arguments as :func:`.aggregate.match_block` (``occ``, ``rew``, ``slant``: doubled per-pixel
-    units, scaled by ``scale`` for the smoothed costs), plus ``p1``/``p2`` (doubled units) and
-    ``down``: an (H, W, nd) float32 work volume.
+    Arguments as :func:`.aggregate.match_image_aggregated` (``occ``, ``rew``, ``slant``:
+    doubled per-pixel units, scaled by ``scale`` for the smoothed costs), plus ``p1``/``p2``
+    (doubled units) and ``down``: an (H, W, nd) float32 work volume.
     """
     H, W = left.shape
     occ_s = np.float32(np.floor(occ * scale / q + 0.5))
