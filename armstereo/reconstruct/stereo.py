@@ -105,7 +105,8 @@ SLANT_PENALTY = 20.0  # grey levels, for a one-pixel disparity step
 TEXTURE_THRESHOLD = 1.0  # grey levels per pixel, mean |horizontal gradient| over the window
 TEXTURE_WINDOW = 5
 REWARD_TEXTURE = 0.5  # grey levels per pixel: matching flatter pixels earns no reward
-PREFILTER_MODES = ("none", "highpass")
+PREFILTER_MODES = ("none", "highpass", "edges")
+EDGE_CAP = 20.0  # grey levels: "edges" adds the horizontal Sobel clipped to +-this
 PREFILTER_SIGMA = 8.0  # px: slower brightness changes than this are removed
 PREFILTER_GAIN = 2.0  # contrast of what is left (the penalties are in grey levels)
 SPECKLE_SIZE = 100  # pixels
@@ -159,7 +160,8 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
                speckle_size: int = SPECKLE_SIZE, speckle_range: float = SPECKLE_RANGE,
                reward_texture: float = REWARD_TEXTURE, prefilter: str = "none",
                prefilter_sigma: float = PREFILTER_SIGMA,
-               prefilter_gain: float = PREFILTER_GAIN,
+               prefilter_gain: float = PREFILTER_GAIN, edge_cap: float = EDGE_CAP,
+               occlusion_margin: float = OCCLUSION_MARGIN,
                photo_check: float = 0.0, column_support: bool = True,
                consensus_size: int = CONSENSUS_SIZE,
                column_smoothing: tuple[float, float] | None = None) -> np.ndarray:
@@ -251,6 +253,8 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
                           f"({speckle_size}) and speckle_range ({speckle_range}) must be >= 0")
     if consensus_size != 0 and (consensus_size < 3 or consensus_size % 2 == 0):
         raise StereoError(f"consensus_size must be 0 (off) or odd and >= 3, got {consensus_size}")
+    if not occlusion_margin >= 0:
+        raise StereoError(f"occlusion_margin must be >= 0 pixels, got {occlusion_margin}")
     if not photo_check >= 0:
         raise StereoError(f"photo_check must be >= 0 grey levels, got {photo_check}")
     smooth = _smoothing(column_smoothing)
@@ -267,11 +271,13 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
     textured_l = _rewarded(strength, reward_texture)
     if prefilter not in PREFILTER_MODES:
         raise StereoError(f"prefilter={prefilter!r} is not one of {', '.join(PREFILTER_MODES)}")
+    if prefilter != "none" and color != "gray":
+        raise StereoError(f'prefilter="{prefilter}" works on grey matching only (color="gray")')
     if prefilter == "highpass":
-        if color != "gray":
-            raise StereoError('prefilter="highpass" works on grey matching only (color="gray")')
         gl = _highpass(gl, lmask, prefilter_sigma, prefilter_gain)
         gr = _highpass(gr, rmask, prefilter_sigma, prefilter_gain)
+    elif prefilter == "edges":
+        gl, gr = _with_edges(gl, edge_cap), _with_edges(gr, edge_cap)
     ml, mr = (gl[:, :, None], gr[:, :, None]) if color == "gray" else (left, right)
     units = 2 * (ml.shape[2] if color == "sum" else 1)  # doubled units, summed channels
     occ = int(round(occlusion_penalty * units))
@@ -297,7 +303,7 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
         _reject(masked, reject, _unsupported(masked, flat, FLAT_TOLERANCE,
                                              columns=column_support))
     if occlusions == "nan":
-        _reject(masked, reject, _hidden_by_nearer(masked, OCCLUSION_MARGIN))
+        _reject(masked, reject, _hidden_by_nearer(masked, occlusion_margin))
     if lr_check:
         textured_r = _rewarded(_texture_strength(grey_r), reward_texture)
         idx_r, state_r = _match(mr[:, ::-1], ml[:, ::-1], rmask[:, ::-1], lmask[:, ::-1],
@@ -389,6 +395,17 @@ def _highpass(grey: np.ndarray, mask: np.ndarray, sigma: float, gain: float) -> 
         mean = np.where(den > 1e-3, num / den, g)
     out = np.float32(gain) * (g - mean) + np.float32(128)
     return np.clip(np.rint(out), 0, 255).astype(np.uint8)
+
+
+def _with_edges(grey: np.ndarray, cap: float) -> np.ndarray:
+    """``I + clip(Sobel_x(I), -cap, cap)`` as uint8 (saturated): the matched image of
+    ``prefilter="edges"``."""
+    if not cap > 0:
+        raise StereoError(f"edge_cap must be > 0 grey levels, got {cap}")
+    sx = cv2.Sobel(grey, cv2.CV_16S, 1, 0, ksize=3)
+    c = int(round(cap))
+    np.clip(sx, -c, c, out=sx)
+    return cv2.add(grey, sx, dtype=cv2.CV_8U)
 
 
 def _gradient_step(left: np.ndarray, right: np.ndarray, idx: np.ndarray,
