@@ -14,6 +14,7 @@ import pytest
 from armstereo.errors import StereoError
 from armstereo.evaluation.disparity import evaluate_disparity
 from armstereo.io.disparity import read_disparity
+from armstereo.reconstruct import stereo
 from armstereo.reconstruct.stereo import PAPER_OPTIONS, birchfield, compute_disparity, sgbm
 from tests.support import MIDDLEBURY
 from tests.support.images import box_pair, texture
@@ -68,7 +69,9 @@ def test_min_disparity_shifts_the_window():
 def test_fronto_parallel_box_interiors_exact_and_occlusion_strip_where_geometry_says():
     d_bg, d_fg, (x0, x1, y0, y1) = 3, 11, (50, 100, 20, 60)
     left, right = box_pair(d_bg, d_fg, (x0, x1, y0, y1))
-    disp = birchfield(left, right, 15, subpixel="none")
+    # a margin of one pixel: every pixel of the strip projects behind the box (the default
+    # margin keeps the background's disparity on the strip's first d_fg - d_bg - 3 pixels)
+    disp = birchfield(left, right, 15, subpixel="none", occlusion_margin=1)
     m = 3  # boundaries may be off by a pixel or two (docs/birchfield-tomasi.md §10.3)
     np.testing.assert_array_equal(disp[y0 + m:y1 - m, x0 + m:x1 - m], d_fg)
     np.testing.assert_array_equal(disp[y0 + m:y1 - m, d_bg + m:x0 - (d_fg - d_bg) - m], d_bg)
@@ -85,6 +88,9 @@ def test_fronto_parallel_box_interiors_exact_and_occlusion_strip_where_geometry_
         missing[:d_bg] = False
         assert (missing & strip).sum() >= strip.sum() - 1
         assert not (missing & ~near_strip).any()
+    default = birchfield(left, right, 15, subpixel="none")
+    kept = x0 - (d_fg - d_bg) + np.arange(d_fg - d_bg - stereo.OCCLUSION_MARGIN + 1)
+    np.testing.assert_array_equal(default[y0 + m:y1 - m][:, kept.astype(int)], d_bg)
     # the paper's own policy fills the strip with the background disparity instead
     filled = birchfield(left, right, 15, subpixel="none", occlusions="fill")
     np.testing.assert_array_equal(filled[y0 + m:y1 - m, x0 - (d_fg - d_bg) + 1:x0 - 1], d_bg)
@@ -292,16 +298,19 @@ def test_the_option_string_test_can_tell_the_kernels_apart():
                               equal_nan=True)
 
 
-def test_the_default_match_reward_is_the_documented_5_grey_levels():
+def test_the_default_match_reward_is_the_documented_6_grey_levels():
     # imported here: test_stereo_properties imports this module
     from tests.armstereo.reconstruct.test_stereo_properties import low_contrast
 
     left, right = (low_contrast(img, 0.2) for img in box_pair(1, 9, (30, 55, 5, 25),
                                                                  shape=(30, 90), seed=2))
-    default = birchfield(left, right, 14)
-    np.testing.assert_array_equal(default, birchfield(left, right, 14, match_reward=5))
-    assert not np.array_equal(default, birchfield(left, right, 14, match_reward=4),
-                              equal_nan=True)
+    # on the intensities: the edge prefilter leaves this low-contrast box without a tie that
+    # the reward decides
+    default = birchfield(left, right, 14, prefilter="none")
+    np.testing.assert_array_equal(default, birchfield(left, right, 14, match_reward=6,
+                                                      prefilter="none"))
+    assert not np.array_equal(default, birchfield(left, right, 14, match_reward=5,
+                                                  prefilter="none"), equal_nan=True)
 
 
 def test_highpass_prefilter_runs_on_grey_matching():
