@@ -45,6 +45,7 @@ STAGES = [
     ("stereo", "_textureless", "texture maps"),
     ("stereo", "_rewarded", "texture maps"),
     ("stereo", "_highpass", "highpass prefilter"),
+    ("stereo", "_with_edges", "edge prefilter"),
     ("stereo", "_match", "match setup (stereo.py)"),
     ("aggregate", "match_image_aggregated", "match setup (aggregate.py)"),
     ("aggregate", "fill_outside", "fill_outside (aggregate.py)"),
