@@ -49,11 +49,13 @@ restores it) and why:
   12)`` instead of the intensities ``I`` (a prefilter like SGBM's, whose cost adds a
   dissimilarity of clipped horizontal Sobels to that of the intensities): a stretch of
   background beside a nearer object then no longer matches as cheaply at the object's
-  disparity, so depth jumps land on its outline (Cones bad-2 7.6 % -> 4.7 %, Venus 2.8 % ->
-  1.0 %; on the real rings points outside the box 19 % -> 11 %, held out 15 % -> 6 %, cross-pair
-  median distance down a quarter: bench/results/stereo_accuracy.md). Caps 10-20 are within
-  0.1 pt of each other on the tuning pairs; the gradient alone (no ``I``), a Laplacian, a
-  5x5 Sobel or a subtracted Sobel are worse. It costs about 0.3 ms per pair. Grey only;
+  disparity, and blobs at a wrong disparity on weakly textured surfaces go (with cap 10:
+  Cones bad-2 7.6 % -> 5.0 %, Venus 2.8 % -> 1.1 %; on the real rings points outside the box
+  19 % -> 11 %, held out 15 % -> 6 %, cross-pair median distance down a quarter:
+  bench/results/stereo_accuracy.md). Caps 10-20 are within 0.1 pt of each other on the
+  tuning pairs; the gradient alone (no ``I``), a Laplacian, a 5x5 Sobel or a subtracted
+  Sobel are worse. It costs about 0.3 ms per pair. The sub-pixel steps still fit the
+  intensities. Grey only;
 - ``occlusion_margin=5``: a pixel is declared hidden by a nearer one only when its
   right-image position lies 5 pixels (not 1) beyond the nearer pixel's: what the margin of 1
   removed beside a depth edge was mostly visible background, declared hidden by a foreground
