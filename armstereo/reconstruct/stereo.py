@@ -563,14 +563,9 @@ def _unsupported(disp: np.ndarray, flat: np.ndarray, tolerance: float,
     count = last - first + 1  # at lists the runs' pixels in order
     at = at[~((d >= np.repeat(lo, count)) & (d <= np.repeat(hi, count)))]
     if columns and at.size:  # only the row's rejects need their column
-        H, W = disp.shape
-        lo, hi, first, _ = _run_bounds(np.ascontiguousarray(disp.T),
-                                       np.ascontiguousarray(query.T),
-                                       np.ascontiguousarray(anchor.T), tolerance)
-        y, x = np.divmod(at, W)
-        run = np.searchsorted(first, x * H + y, side="right") - 1  # in the transpose
+        lo, hi = _column_bounds(disp, query, anchor, tolerance, at)
         d = disp.ravel().take(at)
-        at = at[~((d >= lo.take(run)) & (d <= hi.take(run)))]
+        at = at[~((d >= lo) & (d <= hi))]
     out.ravel()[at] = True
     return out
 
@@ -597,18 +592,52 @@ def _run_bounds(disp: np.ndarray, query: np.ndarray, anchor: np.ndarray,
     marks, flat_d = anchor.ravel(), disp.ravel()
     has_left = (first % W != 0) & marks.take(left, mode="wrap")
     has_right = (right % W != 0) & marks.take(right, mode="wrap")
+    lo, hi = _neighbour_bounds(has_left, flat_d.take(left, mode="wrap"), has_right,
+                               flat_d.take(right, mode="wrap"), right - left, tolerance)
+    return lo, hi, first, last
+
+
+def _column_bounds(disp: np.ndarray, query: np.ndarray, anchor: np.ndarray, tolerance: float,
+                   at: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_run_bounds` along the columns, for the pixels of flat index ``at`` only
+    (query pixels): ``(lo, hi)`` per pixel. Only the query map is transposed, to find the
+    column runs; the neighbours are read from ``disp`` and ``anchor`` where they are."""
+    H, W = disp.shape
+    columns = np.ascontiguousarray(query.T)
+    begins = columns.copy()
+    begins[:, 1:] &= ~columns[:, :-1]
+    ends = columns
+    ends[:, :-1] &= ~columns[:, 1:]
+    first, last = np.flatnonzero(begins), np.flatnonzero(ends)  # x * H + y
+    y, x = np.divmod(at, W)
+    run = np.searchsorted(first, x * H + y, side="right") - 1
+    top = first.take(run) % H - 1  # rows of the run's neighbours: -1 and H are outside
+    bottom = last.take(run) % H + 1
+    up, down = top * W + x, bottom * W + x  # out of the image at the ends: masked below
+    marks, flat_d = anchor.ravel(), disp.ravel()
+    has_up = (top >= 0) & marks.take(up, mode="wrap")
+    has_down = (bottom < H) & marks.take(down, mode="wrap")
+    return _neighbour_bounds(has_up, flat_d.take(up, mode="wrap"), has_down,
+                             flat_d.take(down, mode="wrap"), bottom - top, tolerance)
+
+
+def _neighbour_bounds(has_left: np.ndarray, d_left: np.ndarray, has_right: np.ndarray,
+                      d_right: np.ndarray, gap: np.ndarray,
+                      tolerance: float) -> tuple[np.ndarray, np.ndarray]:
+    """The test of :func:`_run_bounds` from a run's two neighbours (anchor or not, their
+    disparities, ``gap``: their distance in pixels): ``(lo, hi)``, NaN where rejected."""
     nan = np.float32(np.nan)
-    d_left = np.where(has_left, flat_d.take(left, mode="wrap"), nan)
-    d_right = np.where(has_right, flat_d.take(right, mode="wrap"), nan)
+    d_left = np.where(has_left, d_left, nan)
+    d_right = np.where(has_right, d_right, nan)
     # a run between a break and an anchor within two texture windows needs that anchor only
-    near = right - left <= 2 * TEXTURE_WINDOW
+    near = gap <= 2 * TEXTURE_WINDOW
     d_left = np.where(~has_left & near, d_right, d_left)
     d_right = np.where(~has_right & near, d_left, d_right)
     with np.errstate(invalid="ignore"):
-        span = tolerance + FLAT_SLOPE * (right - left)  # a slanted surface may change
+        span = tolerance + FLAT_SLOPE * gap  # a slanted surface may change
         agree = np.abs(d_left - d_right) <= span
     lo = np.where(agree, np.fmin(d_left, d_right) - tolerance, nan)
-    return lo, np.fmax(d_left, d_right) + tolerance, first, last
+    return lo, np.fmax(d_left, d_right) + tolerance
 
 
 def _texture_strength(grey: np.ndarray) -> np.ndarray:
