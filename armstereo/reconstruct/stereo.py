@@ -109,6 +109,7 @@ from armstereo.reconstruct.birchfield.refine import (
     refine_parabola,
 )
 from armstereo.reconstruct.birchfield.vertical import match_image_vertical
+from armstereo.reconstruct.strips import each_strip, row_strips, strip_pool
 
 log = logging.getLogger(__name__)
 
@@ -328,49 +329,102 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
                   paper_postprocess=postprocess == "paper",
                   smooth=None if smooth is None else tuple(int(round(p * units)) for p in smooth))
     idx, state = _match(ml, mr, lmask, rmask, textured=textured_l, **params)
-    dense = idx.astype(np.float32)  # _match has set -1 on every pixel it rejects
-    if subpixel == "fast":
-        dense += _gradient_step(sub_l, sub_r, idx, min_disparity)
-    if postprocess == "median":
-        dense = _median(dense, idx)
-    reject = idx < 0
-    masked = np.where(reject, np.float32(np.nan), dense)  # NaN where rejected so far
-    if flat is not None:
-        _reject(masked, reject, _unsupported(masked, flat, FLAT_TOLERANCE,
-                                             columns=column_support))
-    if occlusions == "nan":
-        _reject(masked, reject, _hidden_by_nearer(masked, occlusion_margin))
-    if lr_check:
-        textured_r = _rewarded(_texture_strength(grey_r), reward_texture)
-        idx_r, state_r = _match(mr[:, ::-1], ml[:, ::-1], rmask[:, ::-1], lmask[:, ::-1],
-                                textured=None if textured_r is None else textured_r[:, ::-1],
-                                **params)
-        # mirrored, swapped pair: its "left" is the mirrored right image
-        idx_r = np.where(state_r >= _dp.BORDER, -1, idx_r)
-        idx_r = np.ascontiguousarray(idx_r[:, ::-1])
-        _reject(masked, reject, left_right_mismatch(np.where(reject, -1, idx), idx_r,
-                                                    min_disparity, 1))
-    disp = masked
-    disp += np.float32(min_disparity)
-    if photo_check > 0:  # before the speckle filter, which removes what it leaves isolated
-        disp[_photo_inconsistent(grey_l, grey_r, disp, photo_check)] = np.nan
-    if subpixel in ("gradient", "parabola"):
-        whole = np.rint(disp)
-        if subpixel == "gradient":
-            disp = refine_gradient(sub_l.astype(np.float32), sub_r.astype(np.float32), whole,
-                                   subpixel_radius, SUBPIXEL_ITERATIONS, SUBPIXEL_MAX_SHIFT)
-        else:
-            disp = refine_parabola(sub_l.astype(np.float32), sub_r.astype(np.float32), whole,
-                                   subpixel_radius)
-    if consensus_size > 0:
-        _replace_outliers(disp, consensus_size, min_disparity, max_disparity, speckle_range)
-    if speckle_size > 0:
-        _remove_speckles(disp, speckle_size, speckle_range)
-    disp = _clip_to_window(disp, min_disparity, max_disparity)
-    # The median and the sub-pixel steps move disparities after matching: one may now point
-    # into the right image's fill or past its edge, which the programme itself never matches.
-    _reject_invalid_partners(disp, rmask, min_disparity + max_disparity)
+    # the steps up to the consensus median run on strips of rows side by side
+    strips = row_strips(idx.shape[0], n_threads)
+    with strip_pool(strips) as pool:
+        masked, reject = _masked_map(pool, strips, sub_l, sub_r, idx, min_disparity,
+                                     fast=subpixel == "fast", median=postprocess == "median",
+                                     flat=flat, columns=column_support,
+                                     hidden=occlusion_margin if occlusions == "nan" else None)
+        if lr_check:
+            textured_r = _rewarded(_texture_strength(grey_r), reward_texture)
+            idx_r, state_r = _match(mr[:, ::-1], ml[:, ::-1], rmask[:, ::-1], lmask[:, ::-1],
+                                    textured=None if textured_r is None else textured_r[:, ::-1],
+                                    **params)
+            # mirrored, swapped pair: its "left" is the mirrored right image
+            idx_r = np.where(state_r >= _dp.BORDER, -1, idx_r)
+            idx_r = np.ascontiguousarray(idx_r[:, ::-1])
+            _reject(masked, reject, left_right_mismatch(np.where(reject, -1, idx), idx_r,
+                                                        min_disparity, 1))
+        disp = masked
+        disp += np.float32(min_disparity)
+        if photo_check > 0:  # before the speckle filter, which removes what it leaves isolated
+            disp[_photo_inconsistent(grey_l, grey_r, disp, photo_check)] = np.nan
+        if subpixel in ("gradient", "parabola"):
+            whole = np.rint(disp)
+            if subpixel == "gradient":
+                disp = refine_gradient(sub_l.astype(np.float32), sub_r.astype(np.float32),
+                                       whole,
+                                       subpixel_radius, SUBPIXEL_ITERATIONS, SUBPIXEL_MAX_SHIFT)
+            else:
+                disp = refine_parabola(sub_l.astype(np.float32), sub_r.astype(np.float32),
+                                       whole,
+                                       subpixel_radius)
+        if consensus_size > 0:
+            _replace_outliers(disp, consensus_size, min_disparity, max_disparity, speckle_range,
+                              pool=pool, strips=strips)
+        if speckle_size > 0:
+            _remove_speckles(disp, speckle_size, speckle_range)
+        disp = _clip_to_window(disp, min_disparity, max_disparity)
+        # The median and the sub-pixel steps move disparities after matching: one may now point
+        # into the right image's fill or past its edge, which the programme itself never matches.
+        _reject_invalid_partners(disp, rmask, min_disparity + max_disparity)
     return disp
+
+
+def _masked_map(pool, strips, gl, gr, idx, dmin, *, fast, median, flat, columns, hidden):
+    """The map in window units with every rejection before the left-right check: sub-pixel
+    step, median, NaN on unmatched pixels, on flat pixels their surroundings do not confirm
+    (:func:`_unsupported`) and on pixels a nearer one hides (:func:`_hidden_by_nearer`, with
+    the margin ``hidden``; None = not tested). ``gl``/``gr``: the images the sub-pixel step
+    fits. Returns ``(masked, reject)``: float32 (NaN where rejected) and the bool rejections."""
+    masked = np.empty(idx.shape, np.float32)
+    reject = np.empty(idx.shape, np.bool_)
+    unsup = None if flat is None else np.empty(idx.shape, np.bool_)
+    rejects = each_strip(pool, strips, _first_pass, gl, gr, idx, dmin, fast, median, flat,
+                         masked, reject, unsup)
+    if flat is not None:  # the column test reads whole columns: on the whole map
+        at = np.concatenate(rejects)
+        if columns and at.size:
+            at = _column_rejects(masked, flat, FLAT_TOLERANCE, at)
+        unsup.ravel()[at] = True
+    if unsup is not None or hidden is not None:
+        each_strip(pool, strips, _second_pass, masked, reject, unsup, hidden)
+    return masked, reject
+
+
+def _first_pass(first, stop, gl, gr, idx, dmin, fast, median, flat, masked, reject, unsup):
+    """Rows ``first .. stop - 1`` of :func:`_masked_map` up to the row test of the flat
+    pixels (whose rejects it returns, flat indices of the image): the windows of the
+    sub-pixel step and the median reach beyond the strip, so they run on a few rows more."""
+    H, W = idx.shape
+    halo = (SUBPIXEL_WINDOW // 2 if fast else 0) + (MEDIAN_SIZE // 2 if median else 0)
+    a, b = max(0, first - halo), min(H, stop + halo)
+    part = idx[a:b]
+    dense = part.astype(np.float32)  # _match has set -1 on every pixel it rejects
+    if fast:
+        dense += _gradient_step(gl[a:b], gr[a:b], part, dmin)
+    if median:
+        dense = _median(dense, part)
+    rows, rej = masked[first:stop], reject[first:stop]
+    np.less(idx[first:stop], 0, out=rej)
+    np.copyto(rows, dense[first - a:stop - a])
+    np.copyto(rows, np.float32(np.nan), where=rej)  # NaN where rejected so far
+    if flat is None:
+        return None
+    out, at = _unsupported_rows(rows, flat[first:stop], FLAT_TOLERANCE)
+    unsup[first:stop] = out
+    return at + first * W
+
+
+def _second_pass(first, stop, masked, reject, unsup, hidden):
+    """Rows ``first .. stop - 1``: NaN on the unsupported flat pixels, then on the hidden
+    (``hidden``: the occlusion margin, None = not tested)."""
+    rows, rej = masked[first:stop], reject[first:stop]
+    if unsup is not None:
+        _reject(rows, rej, unsup[first:stop])
+    if hidden is not None:
+        _reject(rows, rej, _hidden_by_nearer(rows, hidden))
 
 
 def _reject(masked: np.ndarray, reject: np.ndarray, new: np.ndarray) -> None:
@@ -551,23 +605,38 @@ def _unsupported(disp: np.ndarray, flat: np.ndarray, tolerance: float,
     pixel its row rejects is still kept when the same test along its column (above and below
     it) confirms it. ``tolerance`` >= 0.
     """
+    out, at = _unsupported_rows(disp, flat, tolerance)
+    if columns and at.size:  # only the row's rejects need their column
+        at = _column_rejects(disp, flat, tolerance, at)
+    out.ravel()[at] = True
+    return out
+
+
+def _unsupported_rows(disp: np.ndarray, flat: np.ndarray,
+                      tolerance: float) -> tuple[np.ndarray, np.ndarray]:
+    """The row test of :func:`_unsupported`: ``(out, at)``, the flat pixels without a
+    disparity and the flat indices of those with one that their row does not confirm."""
     finite = np.isfinite(disp)
     query = flat & finite  # the only pixels that can be kept
     out = flat & ~finite
     at = np.flatnonzero(query)  # intp: take() converts any other index type first
     if at.size == 0:
-        return out
+        return out, at
     anchor = ~flat & finite
     lo, hi, first, last = _run_bounds(disp, query, anchor, tolerance)
     d = disp.ravel().take(at)
     count = last - first + 1  # at lists the runs' pixels in order
-    at = at[~((d >= np.repeat(lo, count)) & (d <= np.repeat(hi, count)))]
-    if columns and at.size:  # only the row's rejects need their column
-        lo, hi = _column_bounds(disp, query, anchor, tolerance, at)
-        d = disp.ravel().take(at)
-        at = at[~((d >= lo) & (d <= hi))]
-    out.ravel()[at] = True
-    return out
+    return out, at[~((d >= np.repeat(lo, count)) & (d <= np.repeat(hi, count)))]
+
+
+def _column_rejects(disp: np.ndarray, flat: np.ndarray, tolerance: float,
+                    at: np.ndarray) -> np.ndarray:
+    """Those of the row test's rejects ``at`` (flat indices) that their column does not
+    confirm either (:func:`_unsupported`'s ``columns``)."""
+    finite = np.isfinite(disp)
+    lo, hi = _column_bounds(disp, flat & finite, ~flat & finite, tolerance, at)
+    d = disp.ravel().take(at)
+    return at[~((d >= lo) & (d <= hi))]
 
 
 def _run_bounds(disp: np.ndarray, query: np.ndarray, anchor: np.ndarray,
@@ -650,7 +719,8 @@ def _texture_strength(grey: np.ndarray) -> np.ndarray:
 
 
 def _replace_outliers(disp: np.ndarray, size: int, dmin: int, dmax: int,
-                      max_diff: float = SPECKLE_RANGE) -> None:
+                      max_diff: float = SPECKLE_RANGE, *, pool=None,
+                      strips: list[tuple[int, int]] | None = None) -> None:
     """Answered pixels more than ``max_diff`` from the median answer of the ``size`` square
     around them take that median (in place): a streak a few rows high, or a blob, that
     disagrees with the surface around it is replaced by what the surface says.
@@ -660,24 +730,49 @@ def _replace_outliers(disp: np.ndarray, size: int, dmin: int, dmax: int,
     CONSENSUS_LEVELS values; NaN is code 0 and a window whose median is NaN changes nothing.
     From CONSENSUS_BOUNDED on, the median is computed only at the pixels where bounds from
     3x3 blocks (:func:`_undecided`) allow it to change the answer: the same result, without
-    the whole-image median of a large square (its cost grows with the side).
+    the whole-image median of a large square (its cost grows with the side). ``strips`` of
+    rows (:mod:`.strips`) run side by side on ``pool``, with the same result.
     """
-    ok = np.isfinite(disp)
+    H = disp.shape[0]
+    if strips is None or len(strips) == 1:
+        _consensus_rows(0, H, disp, disp, size, dmin, dmax, max_diff)
+        return
+    src = disp.copy()  # the strips read the rows around theirs as they were
+    each_strip(pool, strips, _consensus_rows, src, disp, size, dmin, dmax, max_diff)
+
+
+def _consensus_rows(first: int, stop: int, src: np.ndarray, dst: np.ndarray, size: int,
+                    dmin: int, dmax: int, max_diff: float) -> None:
+    """Rows ``first .. stop - 1`` of :func:`_replace_outliers`: medians of ``src``, written
+    into ``dst`` (which may be ``src`` when the rows are the whole image)."""
+    H = src.shape[0]
+    r = size // 2
+    a, b = max(0, first - r), min(H, stop + r)  # the rows the squares reach
+    part = src[a:b]
+    ok_part = np.isfinite(part)
     step = max(1, -(-(dmax + 1) // CONSENSUS_LEVELS))  # disparities per code
     with np.errstate(invalid="ignore"):  # NaN's code is set below
-        code = np.rint((disp - dmin) / step).astype(np.uint8)
+        code = np.rint((part - dmin) / step).astype(np.uint8)
     code += 1
-    np.multiply(code, ok, out=code)  # NaN: 0
-    at = None
+    np.multiply(code, ok_part, out=code)  # NaN: 0
+    disp, ok = dst[first:stop], ok_part[first - a:stop - a]
+    at = padded = None
     if (CONSENSUS_BOUNDED <= size <= CONSENSUS_BOUNDED_MAX and disp.flags.c_contiguous
             and max_diff <= CONSENSUS_REACH * step):
-        r = size // 2
-        padded = cv2.copyMakeBorder(code, r, r, r, r, cv2.BORDER_REPLICATE)
+        # replicated as the image's median does, where the strip meets the image's edge
+        padded = cv2.copyMakeBorder(code, r - (first - a), r - (b - stop), r, r,
+                                    cv2.BORDER_REPLICATE)
         at = np.flatnonzero(_undecided(padded, disp, ok, size, step, dmin, max_diff))
         if at.size > CONSENSUS_SHARE * disp.size:
             at = None  # the whole-image median is cheaper
     if at is None:
-        med = cv2.medianBlur(code, size)
+        if a == first and b == stop:  # the whole image
+            med = cv2.medianBlur(code, size)
+        else:
+            if padded is None:
+                padded = cv2.copyMakeBorder(code, r - (first - a), r - (b - stop), r, r,
+                                            cv2.BORDER_REPLICATE)
+            med = cv2.medianBlur(padded, size)[r:r + stop - first, r:r + disp.shape[1]]
         medd = (med.astype(np.float32) - 1) * np.float32(step) + np.float32(dmin)
         with np.errstate(invalid="ignore"):
             outlier = ok & (med > 0) & (np.abs(disp - medd) > max_diff)
