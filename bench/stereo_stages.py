@@ -58,16 +58,23 @@ STAGES = [
     ("stereo", "_gradient_step", "sub-pixel: fast"),
     ("stereo", "_median", "median"),
     ("stereo", "_unsupported", "unsupported flat pixels"),
+    ("stereo", "_unsupported_rows", "unsupported flat pixels"),
+    ("stereo", "_column_rejects", "unsupported flat pixels"),
     ("stereo", "_hidden_by_nearer", "hidden by nearer"),
     ("stereo", "left_right_mismatch", "left-right check"),
     ("stereo", "_photo_inconsistent", "photo check"),
     ("stereo", "refine_gradient", "sub-pixel: gradient"),
     ("stereo", "refine_parabola", "sub-pixel: parabola"),
     ("stereo", "_replace_outliers", "consensus median"),
+    ("stereo", "_consensus_rows", "consensus median"),
     ("stereo", "_reject", "reject (NaN bookkeeping)"),
     ("stereo", "_remove_speckles", "speckles"),
+    ("stereo", "_speckle_codes", "speckles"),
     ("stereo", "_clip_to_window", "clip to window"),
     ("stereo", "_reject_invalid_partners", "invalid partners"),
+    ("stereo", "_masked_map", "rest of birchfield()"),  # the strips' bookkeeping
+    ("stereo", "_first_pass", "rest of birchfield()"),
+    ("stereo", "_second_pass", "rest of birchfield()"),
     ("stereo", "birchfield", "rest of birchfield()"),
 ]
 DP = "DP kernels"
