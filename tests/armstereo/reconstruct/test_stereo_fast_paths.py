@@ -1,14 +1,18 @@
 """The fast paths of the stages after the matching give exactly what their definitions give:
-the consensus median computed only where it can change the answer, and the flat-pixel test
-decided once per run (column pass only at the row's rejects)."""
+the consensus median computed only where it can change the answer, the flat-pixel test
+decided once per run (column pass only at the row's rejects), and the steps on strips of rows
+when threads are allowed."""
 
 from __future__ import annotations
+
+from concurrent.futures import ThreadPoolExecutor
 
 import cv2
 import numpy as np
 import pytest
 
 from armstereo.reconstruct import stereo
+from tests.support.images import box_pair
 
 SEED = 14
 
@@ -93,3 +97,39 @@ def test_flat_test_equals_rows_and_transposed_rows(tolerance):
         both = stereo._unsupported(disp, flat, tolerance, columns=True)
         np.testing.assert_array_equal(both, rows & columns)
         assert not (rows & ~flat).any()  # only flat pixels are ever rejected
+
+
+@pytest.mark.parametrize("size", [5, 9])
+def test_consensus_on_strips_equals_the_whole_image(size):
+    """Strips of rows (threads) read the rows around theirs as they were before any change."""
+    rng = np.random.default_rng(SEED + size)
+    disp = surface_with_blobs(rng, (120, 90), 2, 31)
+    noisy = rng.uniform(0, 33, (30, 90)).astype(np.float32)  # undecided: the strip's median
+    disp[60:90] = noisy
+    expected = disp.copy()
+    stereo._replace_outliers(expected, size, 2, 31)
+    for strips in ([(0, 1), (1, 50), (50, 120)], [(0, 40), (40, 80), (80, 120)]):
+        got = disp.copy()
+        with ThreadPoolExecutor(2) as pool:
+            stereo._replace_outliers(got, size, 2, 31, pool=pool, strips=strips)
+        assert np.array_equal(got.view(np.uint32), expected.view(np.uint32))
+
+
+@pytest.mark.parametrize("options", [{}, {"photo_check": 4.0}, {"subpixel": "none"},
+                                     {"postprocess": "none", "occlusions": "fill"},
+                                     {"consensus_size": 5, "column_support": False}])
+def test_threads_give_the_same_map_bit_for_bit(options):
+    """The steps after matching run on strips of rows when threads are allowed: same map."""
+    left, right = box_pair(3, 11, (50, 110, 30, 90), shape=(130, 160), seed=9)
+    left[95:120, 10:70] = 90  # a flat patch: the texture rule and column support act
+    right[95:120, 7:67] = 90
+    mask = np.ones(left.shape, bool)
+    mask[:, 150:] = False
+    mask[40:60, 145:] = True  # ragged: more than one run on some rows
+    mask[40:60, 140:145] = False
+    one = stereo.birchfield(left, right, 15, min_disparity=1, threads=1, right_mask=mask,
+                            **options)
+    for threads in (2, 3):
+        got = stereo.birchfield(left, right, 15, min_disparity=1, threads=threads,
+                                right_mask=mask, **options)
+        assert np.array_equal(got.view(np.uint32), one.view(np.uint32))
