@@ -523,9 +523,11 @@ def _gradient_step(left: np.ndarray, right: np.ndarray, idx: np.ndarray,
     gl = cv2.Sobel(left, cv2.CV_32F, 1, 0, ksize=1, scale=quarter)
     g = cv2.Sobel(right, cv2.CV_32F, 1, 0, ksize=1, scale=quarter)
     # partner column minus one, xr - 1 = x - dmin - 1 - idx: usable where 0 <= xr - 1 <= W - 3
-    at = np.arange(-dmin - 1, W - dmin - 1, dtype=np.intp) - idx  # intp: what take() uses
+    # (intp: what take() uses). idx read as unsigned puts the partner of -1 (no match) far
+    # outside, and an explicit conversion is cheaper than a mixed-type subtraction
+    at = np.asarray(idx, np.int32).view(np.uint32).astype(np.intp)
+    np.subtract(np.arange(-dmin - 1, W - dmin - 1, dtype=np.intp), at, out=at)
     off = np.greater_equal(at.view(np.uintp), np.uintp(W - 2))  # one test for both ends
-    off |= idx < 0
     at += np.arange(1, H * W, W, dtype=np.intp)[:, None]  # flat index of the partner
     # where off, any pixel will do (its g is zeroed): "clip" keeps the index in the image
     g = g.ravel().take(at, mode="clip")
