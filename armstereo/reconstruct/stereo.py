@@ -972,8 +972,10 @@ def _reject_invalid_partners(disp: np.ndarray, rmask: np.ndarray,
     runs = _single_runs(rmask)
     with np.errstate(invalid="ignore"):
         if runs is not None:  # a rectification's mask: one run [a, b) of valid pixels per row
-            ok = xr >= runs[0]
-            ok &= xr < runs[1]
+            # float64 bounds: comparing with the int columns would convert every pixel's
+            a, b = (r.astype(np.float64) for r in runs)
+            ok = xr >= a
+            ok &= xr < b
         else:
             ok = xr >= 0
             ok &= xr < W
