@@ -37,6 +37,7 @@ from armstereo.reconstruct.birchfield.blocks import block_setup
 from armstereo.reconstruct.birchfield.cost import INF
 from armstereo.reconstruct.birchfield.dp_exact import EXACT_BELOW, MAX_PIXEL_COST
 from armstereo.reconstruct.birchfield.dp_pruned import C0, NO_VARIATION_PENALTY
+from armstereo.reconstruct.birchfield.fused import FUSED_MAX_RY, lane_forward_column
 from armstereo.reconstruct.birchfield.lanes import (
     LANES,
     SLANT,
@@ -126,13 +127,18 @@ def _match_blocks(blocks: range, bounds: np.ndarray, setup: tuple, params: tuple
     geos, pen_ls, rews, pen_rs, ranges = setup
     costs, phi, rbest, run, ints, sloc = _lane_work(bounds, nd, rx, ry)
     slant = pens[SLANT]
+    fused = rx == 0 and 0 <= ry <= FUSED_MAX_RY and dmin >= 0  # the common windows
     for b in blocks:
         x_begin, x_end = int(ranges[b, 0]), int(ranges[b, 1])
         if x_end <= x_begin:
             continue
         row0, geo, pen_l, rew, pen_r = b * LANES, geos[b], pen_ls[b], rews[b], pen_rs[b]
-        lane_forward(row0, rx, ry, dmin, q, geo, x_begin, x_end, pen_l, rew, pen_r, slant,
-                     costs, phi, rbest, run)
+        if fused:
+            lane_forward_column(row0, ry, dmin, q, geo, x_begin, x_end, pen_l, rew, pen_r,
+                                slant, costs, phi, rbest, run)
+        else:
+            lane_forward(row0, rx, ry, dmin, q, geo, x_begin, x_end, pen_l, rew, pen_r, slant,
+                         costs, phi, rbest, run)
         lane_backtrack(geo, phi, costs[4], pen_l, rew, pen_r, slant, dmin, row0, ints, sloc,
                        disp, state)
 
