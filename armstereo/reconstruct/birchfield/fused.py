@@ -27,6 +27,7 @@ from numba.extending import intrinsic
 from armstereo.reconstruct.birchfield.cost import INF
 from armstereo.reconstruct.birchfield.jit import njit
 from armstereo.reconstruct.birchfield.lanes import ACTIVE, R0, U1, X0, _start_lane
+from armstereo.reconstruct.birchfield.minmax import max2, min2
 from armstereo.reconstruct.birchfield.simd import LANES, vfloor, vmax, vmin
 
 FUSED_MAX_RY = 1  # window rows 2 ry + 1 handled here (one intrinsic pair per ry is compiled)
@@ -57,10 +58,16 @@ def lane_forward_column(row0, ry, dmin, q, geo, x_begin, x_end, pen_l, rew, pen_
     for u in range(x_begin, x_end + nd):
         for lane in range(LANES):
             rbest[u, lane] = inf
+    first, last = x_end, x_begin - 1  # the right pixels where some lane starts
+    for lane in range(LANES):
+        if geo[ACTIVE, lane]:
+            first = min2(first, geo[R0, lane])
+            last = max2(last, geo[R0, lane])
     for x in range(x_begin, x_end):
-        for lane in range(LANES):
-            if geo[ACTIVE, lane] and geo[R0, lane] == x:
-                _start_lane(d[x], lane, phi[x], phi[x + 1], rbest[x:x + nd])
+        if first <= x <= last:
+            for lane in range(LANES):
+                if geo[ACTIVE, lane] and geo[R0, lane] == x:
+                    _start_lane(d[x], lane, phi[x], phi[x + 1], rbest[x:x + nd])
         if x + 1 < x_end:
             if ry == 0:
                 _step_ry0(arrays, (x + 1, row0, dmin, divided), (slant, iq))
