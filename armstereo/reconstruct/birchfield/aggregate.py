@@ -15,7 +15,9 @@ disparities included, is then one vector operation, and node costs are summed as
 pass goes. Every block's geometry and penalties are set up in numpy for the whole image
 (:mod:`.blocks`), then a Python loop drives the blocks through two small kernels (forward,
 backtrack), which numba compiles separately: far less compile time than one kernel with every
-step inlined (bench/results/dp_lanes.md, coldstart.md). Pixels outside the validity masks
+step inlined (bench/results/dp_lanes.md, coldstart.md). For windows one column wide (the
+default 1x3 and the paper's 1x1) the forward kernel is :mod:`.fused`'s, which does a node's
+cost and step in one loop of LLVM IR. Pixels outside the validity masks
 take part in the sums with the edge-replicated values the caller fills in (a row's programme
 itself only uses its valid run, as in :mod:`.matcher`).
 
