@@ -33,6 +33,7 @@ from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
 
+import cv2
 import numpy as np
 
 from armstereo.reconstruct.birchfield.blocks import block_setup
@@ -93,7 +94,9 @@ def match_image_aggregated(left: np.ndarray, right: np.ndarray, lmask: np.ndarra
         textured = np.ones((H, W), np.bool_)
     starts = range(0, H, LANES)
     bounds = np.empty((6, W, starts[-1] + _vector_rows(ry)), np.float32)
-    image_bounds(fill_outside(left, lmask), fill_outside(right, rmask), ry, bounds)
+    rows = np.clip(np.arange(bounds.shape[2]) - ry, 0, H - 1)  # image row of each column
+    image_bounds(*(cv2.transpose(np.take(fill_outside(img, mask), rows, axis=0))
+                   for img, mask in ((left, lmask), (right, rmask))), bounds)
     pens = _scaled_penalties(occ, rew, slant, npix, q)
     setup = block_setup(left, right, lmask, rmask, np.asarray(textured, np.bool_), dmin, nd,
                         pens, out["disp"], out["state"])
