@@ -54,6 +54,7 @@ STAGES = [
     ("aggregate", "lane_setup", "DP kernels"),  # before block_setup
     ("aggregate", "block_setup", "DP kernels"),
     ("aggregate", "lane_forward", "DP kernels"),
+    ("aggregate", "lane_forward_column", "DP kernels"),  # one-column windows, fused.py
     ("aggregate", "lane_backtrack", "DP kernels"),
     ("stereo", "_gradient_step", "sub-pixel: fast"),
     ("stereo", "_median", "median"),

@@ -12,7 +12,8 @@ Modules, in the order the matcher uses them:
   the paper's single-pixel costs;
 - :mod:`.aggregate`: the default matcher on window-summed costs with slant steps: per-row
   geometry, penalties and rewards for the whole image in numpy (:mod:`.blocks`), then
-  :mod:`.lanes` (blocks of rows in lockstep, rows as the SIMD axis via :mod:`.simd`);
+  :mod:`.lanes` (blocks of rows in lockstep, rows as the SIMD axis via :mod:`.simd`;
+  :mod:`.fused`: its forward pass as one IR loop per right pixel, for one-column windows);
 - :mod:`.minmax`: ``min``/``max`` emitted inline (the builtins compile a function per type
   pair: cold start);
 - :mod:`.rows`: the same programme one row at a time, used by :mod:`.vertical` (the

@@ -15,7 +15,9 @@ disparities included, is then one vector operation, and node costs are summed as
 pass goes. Every block's geometry and penalties are set up in numpy for the whole image
 (:mod:`.blocks`), then a Python loop drives the blocks through two small kernels (forward,
 backtrack), which numba compiles separately: far less compile time than one kernel with every
-step inlined (bench/results/dp_lanes.md, coldstart.md). Pixels outside the validity masks
+step inlined (bench/results/dp_lanes.md, coldstart.md). For windows one column wide (the
+default 1x3 and the paper's 1x1) the forward kernel is :mod:`.fused`'s, which does a node's
+cost and step in one loop of LLVM IR. Pixels outside the validity masks
 take part in the sums with the edge-replicated values the caller fills in (a row's programme
 itself only uses its valid run, as in :mod:`.matcher`).
 
@@ -31,12 +33,14 @@ from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
 
+import cv2
 import numpy as np
 
 from armstereo.reconstruct.birchfield.blocks import block_setup
 from armstereo.reconstruct.birchfield.cost import INF
 from armstereo.reconstruct.birchfield.dp_exact import EXACT_BELOW, MAX_PIXEL_COST
 from armstereo.reconstruct.birchfield.dp_pruned import C0, NO_VARIATION_PENALTY
+from armstereo.reconstruct.birchfield.fused import FUSED_MAX_RY, lane_forward_column
 from armstereo.reconstruct.birchfield.lanes import (
     LANES,
     SLANT,
@@ -90,7 +94,9 @@ def match_image_aggregated(left: np.ndarray, right: np.ndarray, lmask: np.ndarra
         textured = np.ones((H, W), np.bool_)
     starts = range(0, H, LANES)
     bounds = np.empty((6, W, starts[-1] + _vector_rows(ry)), np.float32)
-    image_bounds(fill_outside(left, lmask), fill_outside(right, rmask), ry, bounds)
+    rows = np.clip(np.arange(bounds.shape[2]) - ry, 0, H - 1)  # image row of each column
+    image_bounds(*(cv2.transpose(np.take(fill_outside(img, mask), rows, axis=0))
+                   for img, mask in ((left, lmask), (right, rmask))), bounds)
     pens = _scaled_penalties(occ, rew, slant, npix, q)
     setup = block_setup(left, right, lmask, rmask, np.asarray(textured, np.bool_), dmin, nd,
                         pens, out["disp"], out["state"])
@@ -126,13 +132,18 @@ def _match_blocks(blocks: range, bounds: np.ndarray, setup: tuple, params: tuple
     geos, pen_ls, rews, pen_rs, ranges = setup
     costs, phi, rbest, run, ints, sloc = _lane_work(bounds, nd, rx, ry)
     slant = pens[SLANT]
+    fused = rx == 0 and 0 <= ry <= FUSED_MAX_RY and dmin >= 0  # the common windows
     for b in blocks:
         x_begin, x_end = int(ranges[b, 0]), int(ranges[b, 1])
         if x_end <= x_begin:
             continue
         row0, geo, pen_l, rew, pen_r = b * LANES, geos[b], pen_ls[b], rews[b], pen_rs[b]
-        lane_forward(row0, rx, ry, dmin, q, geo, x_begin, x_end, pen_l, rew, pen_r, slant,
-                     costs, phi, rbest, run)
+        if fused:
+            lane_forward_column(row0, ry, dmin, q, geo, x_begin, x_end, pen_l, rew, pen_r,
+                                slant, costs, phi, rbest, run)
+        else:
+            lane_forward(row0, rx, ry, dmin, q, geo, x_begin, x_end, pen_l, rew, pen_r, slant,
+                         costs, phi, rbest, run)
         lane_backtrack(geo, phi, costs[4], pen_l, rew, pen_r, slant, dmin, row0, ints, sloc,
                        disp, state)
 

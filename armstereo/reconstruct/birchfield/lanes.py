@@ -121,28 +121,31 @@ def _node_costs(b, x, rx, ry, dmin, q, lims, col, ring, out):
 
 
 @njit(cache=True, nogil=True)
-def image_bounds(left, right, ry, bounds):
+def image_bounds(left_t, right_t, bounds):
     """Doubled value and min/max of the half-samples (BT intervals, :mod:`.cost`) of every
-    pixel of the (H, W) uint8 filled grey images, transposed so that a block's rows are
-    contiguous: ``bounds[i, x, j]`` for image row ``j - ry`` (clamped to the image; columns
-    past ``H + 2 ry`` pad the last block's vectors), ``i`` 0..2 left, 3..5 right."""
-    H, W = left.shape
-    for x in range(W):  # row index innermost: the writes are contiguous
+    pixel of the filled grey images, transposed so that a block's rows are contiguous:
+    ``bounds[i, x, j]``, ``i`` 0..2 left, 3..5 right. ``left_t``/``right_t`` (W, nj) uint8:
+    the images transposed, ``[x, j]`` their row ``j - ry`` (clamped to the image; columns past
+    ``H + 2 ry`` pad the last block's vectors): the loop over ``j`` then reads and writes
+    contiguously, and LLVM vectorises it."""
+    W = left_t.shape[0]
+    for x in range(W):
         xa, xb = max2(0, x - 1), min2(W - 1, x + 1)
-        for j in range(bounds.shape[2]):
-            r = min2(H - 1, max2(0, j - ry))
-            _interval(left[r], x, xa, xb, bounds, 0, j)
-            _interval(right[r], x, xa, xb, bounds, 3, j)
+        _intervals(left_t[x], left_t[xa], left_t[xb], bounds[0, x], bounds[1, x], bounds[2, x])
+        _intervals(right_t[x], right_t[xa], right_t[xb], bounds[3, x], bounds[4, x],
+                   bounds[5, x])
 
 
 @njit(cache=True, inline="always")
-def _interval(row, x, xa, xb, bounds, i, j):
-    a = 2 * np.float32(row[x])
-    p = np.float32(row[xa]) + np.float32(row[x])
-    n = np.float32(row[x]) + np.float32(row[xb])
-    bounds[i, x, j] = a
-    bounds[i + 1, x, j] = min2(a, min2(p, n))
-    bounds[i + 2, x, j] = max2(a, max2(p, n))
+def _intervals(c, before, after, value, lo, hi):
+    for j in range(c.shape[0]):
+        v = np.float32(c[j])
+        a = np.float32(2) * v
+        p = np.float32(before[j]) + v
+        n = v + np.float32(after[j])
+        value[j] = a
+        lo[j] = min2(a, min2(p, n))
+        hi[j] = max2(a, max2(p, n))
 
 
 @njit(cache=True, inner=True)
