@@ -13,10 +13,12 @@ and the same float32 penalties, so the programme sees identical inputs.
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
 from armstereo.reconstruct.birchfield.cost import VARIATION_THRESHOLD
 from armstereo.reconstruct.birchfield.dp_pruned import BORDER, INVALID
+from armstereo.reconstruct.birchfield.jit import njit
 from armstereo.reconstruct.birchfield.lanes import (
     ACTIVE,
     GEO,
@@ -33,6 +35,9 @@ from armstereo.reconstruct.birchfield.lanes import (
     U1,
     X0,
 )
+from armstereo.reconstruct.birchfield.minmax import max2, min2
+
+_RUN3 = np.ones((1, 3), np.uint8)  # the 3-pixel window of the variation flags
 
 
 def longest_runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -65,13 +70,12 @@ def _varies(img: np.ndarray, lo: np.ndarray, hi: np.ndarray, forward: bool) -> n
     else:
         edge = img[rows, np.minimum(lo, W - 1)][:, None]
         v = np.where(cols < lo[:, None], edge, img)
-    def shifted(a):  # a[x + 1] (forward) or a[x - 1], the last (first) pixel repeated
-        return np.c_[a[:, 1:], a[:, -1:]] if forward else np.c_[a[:, :1], a[:, :-1]]
-
-    b = shifted(v)
-    c = shifted(b)
-    mn = np.minimum(np.minimum(v, b), c)
-    mx = np.maximum(np.maximum(v, b), c)
+    # max and min of the 3 pixels from x on (anchor 0) or up to x (anchor 2), the row's last
+    # (first) pixel repeated past its end: numpy's shifted copies took several times longer
+    anchor = (0, 0) if forward else (2, 0)
+    v = np.ascontiguousarray(v)
+    mx = cv2.dilate(v, _RUN3, anchor=anchor, borderType=cv2.BORDER_REPLICATE)
+    mn = cv2.erode(v, _RUN3, anchor=anchor, borderType=cv2.BORDER_REPLICATE)
     return mx - mn >= VARIATION_THRESHOLD  # uint8: mx >= mn, no wrap
 
 
@@ -96,76 +100,83 @@ def block_setup(left: np.ndarray, right: np.ndarray, lmask: np.ndarray, rmask: n
     r1 = np.minimum(rb, u1)
     x0 = np.maximum(u0, r0)
     active = (r1 > r0) & (u1 > x0)
-    disp[:] = -1
-    c = np.arange(W, dtype=np.int32)[None, :]
-    inside = (c >= la.astype(np.int32)[:, None]) & (c < lb.astype(np.int32)[:, None])
-    np.subtract(np.uint8(INVALID), inside.view(np.uint8) * np.uint8(INVALID - BORDER),
-                out=state)  # BORDER on the run
-
-    # per-row bounds as int32 columns; an inactive row gets empty ranges (its values stay 0)
-    def column(v, empty):
-        return np.where(active, v, empty).astype(np.int32)[:, None]
-
-    n_u = W + nd + 2
-    u = np.arange(n_u, dtype=np.int32)[None, :]  # shifted left pixel (image column u + dmin)
-    s0, s1 = column(r0, n_u), column(u1 + nd + 1, 0)  # the lane's span of left pixels
-    e0, e1, rend = column(x0, n_u), column(u1, 0), column(u1, 0)
-    gl = _left_columns(_varies(left, la, lb, True), dmin, n_u)
-    occ, rew_s, novar = pens[OCC], pens[REW], pens[NOVAR]
-    occ_nv = np.float32(occ + novar)
-    span = (u >= s0) & (u < s1)
-    pen_l = _select((u >= e0) & (u < e1) & gl, occ, occ_nv, span)
-    rew = _select((u >= s0) & (u < rend) & _left_columns(textured, dmin, n_u), rew_s)
-    gr = _varies(right, ra, rb, False)
-    on_r = (c >= column(r0, W)) & (c < column(r1, 0))
-    pen_r = _select(gr, occ, occ_nv, on_r)
+    # per-row bounds; an inactive row gets empty ranges (its values stay 0)
+    n_u = W + nd + 2  # shifted left pixels u (image column u + dmin)
+    edges = np.stack([np.where(active, v, empty) for v, empty in (
+        (r0, n_u), (u1 + nd + 1, 0), (x0, n_u), (u1, 0), (r0, W), (r1, 0))] + [la, lb]).astype(
+            np.int32)
+    occ, novar = pens[OCC], pens[NOVAR]
+    values = np.array([occ, occ + novar, pens[REW]], np.float32)
+    pen_l = np.empty((nb, n_u, LANES), np.float32)
+    rew = np.empty((nb, n_u, LANES), np.float32)
+    pen_r = np.empty((nb, W, LANES), np.float32)
+    lane_penalties(edges, _varies(left, la, lb, True), textured, _varies(right, ra, rb, False),
+                   dmin, values, pen_l, rew, pen_r, disp, state)
 
     geo = np.zeros((nb * LANES, GEO), np.int64)
     for k, v in ((LA, la), (LB, lb), (R0, r0), (R1, r1), (X0, x0), (U1, u1), (RA, ra),
                  (RB, rb), (ACTIVE, active)):
         geo[:H, k] = np.where(active, v, 0)
-    lo = np.where(active, r0, W)
-    hi = np.where(active, r1, 0)
-    pad = nb * LANES - H
-    lo, hi = np.pad(lo, (0, pad), constant_values=W), np.pad(hi, (0, pad))
+    lo = np.full(nb * LANES, W, np.int64)  # rows past H: empty
+    hi = np.zeros(nb * LANES, np.int64)
+    lo[:H] = np.where(active, r0, W)
+    hi[:H] = np.where(active, r1, 0)
     ranges = np.stack([lo.reshape(nb, LANES).min(axis=1), hi.reshape(nb, LANES).max(axis=1)],
                       axis=1)
     return (np.ascontiguousarray(geo.reshape(nb, LANES, GEO).transpose(0, 2, 1)),
-            _by_block(pen_l, nb), _by_block(rew, nb), _by_block(pen_r, nb), ranges)
+            pen_l, rew, pen_r, ranges)
 
 
-def _left_columns(a: np.ndarray, dmin: int, n: int) -> np.ndarray:
-    """(H, n) columns ``u + dmin`` of the (H, W) per-pixel ``a`` for shifted left pixels
-    ``u < n``, clamped to ``W - 1``; a negative column wraps around, as the kernels' indexing
-    does (numba's wraparound). Slices when ``dmin >= 0`` (a gather costs several times more)."""
-    H, W = a.shape
-    if dmin < 0:
-        col = np.arange(n) + dmin
-        return np.take(a, np.clip(np.where(col < 0, col + W, col), 0, W - 1), axis=1)
-    out = np.empty((H, n), a.dtype)
-    m = max(0, min(n, W - dmin))
-    out[:, :m] = a[:, dmin:dmin + m]
-    out[:, m:] = a[:, W - 1:]
-    return out
+@njit(cache=True, nogil=True)
+def lane_penalties(edges, gl, textured, gr, dmin, values, pen_l, rew, pen_r, disp, state):
+    """Per-pixel penalties and rewards of every block, written in the lanes' layout, and the
+    reset of the output rows.
 
-
-def _select(cond: np.ndarray, a: np.float32, b: float = 0.0,
-            where: np.ndarray | None = None) -> np.ndarray:
-    """float32 ``a`` where ``cond``, else ``b``; 0 where ``where`` is False: the values (the
-    same bits) of ``np.where``, by integer arithmetic on the bit patterns, which is several
-    times faster than ``np.where`` with scalars on irregular conditions (no branches)."""
-    ia, ib = np.float32(a).view(np.uint32), np.float32(b).view(np.uint32)
-    bits = cond.astype(np.uint32)
-    bits *= ia ^ ib
-    bits ^= ib
-    if where is not None:
-        bits *= where
-    return bits.view(np.float32)
-
-
-def _by_block(a: np.ndarray, nb: int) -> np.ndarray:
-    """(H, n) per-row values as (nb, n, LANES) contiguous blocks (rows past H zero)."""
-    H, n = a.shape
-    out = np.zeros((nb * LANES, n), a.dtype)
-    out[:H] = a
-    return np.ascontiguousarray(out.reshape(nb, LANES, n).transpose(0, 2, 1))
+    ``edges`` (8, H) int32: per row ``s0, s1`` (its span of shifted left pixels ``u``),
+    ``e0, e1`` (where left occlusions may be cheap), ``r0, r1`` (its right pixels), all empty
+    for an inactive row, and ``la, lb`` (its left valid run); ``gl``/``textured``/``gr``
+    (H, W) bool: intensity variation of the left image (forward), texture of the left image,
+    variation of the right image (backward); ``values``: float32 ``[occ, occ + novar,
+    reward]``. Fills ``pen_l[b, u, lane]`` (occ where ``e0 <= u < e1`` and the left pixel
+    varies, else occ + novar, within ``[s0, s1)``), ``rew[b, u, lane]`` (the reward where
+    ``s0 <= u < e1`` and the left pixel is textured) and ``pen_r[b, x, lane]`` (occ or
+    occ + novar by the right pixel's variation within ``[r0, r1)``), 0 elsewhere and in rows
+    past H; ``disp`` -1 and ``state`` BORDER on ``[la, lb)``, INVALID elsewhere. The left pixel
+    of ``u`` is image column ``u + dmin``, clamped to ``W - 1``, a negative one wrapping around
+    as the kernels' indexing does (numba's wraparound). One pass by rows, no whole-image
+    temporaries: numpy's selects and transposes into this layout took ~2 ms of tsukuba's
+    matcher (bench/results/dp_lanes.md)."""
+    H, W = gr.shape
+    zero = np.float32(0.0)
+    occ, occ_nv, reward = values[0], values[1], values[2]
+    for r in range(pen_l.shape[0] * LANES):
+        b, lane = r // LANES, r % LANES
+        if r >= H:
+            for u in range(pen_l.shape[1]):
+                pen_l[b, u, lane] = zero
+                rew[b, u, lane] = zero
+            for x in range(W):
+                pen_r[b, x, lane] = zero
+            continue
+        s0, s1, e0, e1, q0, q1, la, lb = (edges[0, r], edges[1, r], edges[2, r], edges[3, r],
+                                          edges[4, r], edges[5, r], edges[6, r], edges[7, r])
+        for u in range(pen_l.shape[1]):
+            c = u + dmin
+            if c < 0:
+                c += W
+            c = min2(W - 1, max2(0, c))
+            pl = zero
+            rw = zero
+            if s0 <= u < s1:
+                pl = occ if e0 <= u < e1 and gl[r, c] else occ_nv
+                if u < e1 and textured[r, c]:
+                    rw = reward
+            pen_l[b, u, lane] = pl
+            rew[b, u, lane] = rw
+        for x in range(W):
+            pr = zero
+            if q0 <= x < q1:
+                pr = occ if gr[r, x] else occ_nv
+            pen_r[b, x, lane] = pr
+            disp[r, x] = -1
+            state[r, x] = BORDER if la <= x < lb else INVALID
