@@ -35,7 +35,6 @@ from armstereo.reconstruct.birchfield.lanes import (
     U1,
     X0,
 )
-from armstereo.reconstruct.birchfield.minmax import max2, min2
 
 _RUN3 = np.ones((1, 3), np.uint8)  # the 3-pixel window of the variation flags
 
@@ -100,18 +99,23 @@ def block_setup(left: np.ndarray, right: np.ndarray, lmask: np.ndarray, rmask: n
     r1 = np.minimum(rb, u1)
     x0 = np.maximum(u0, r0)
     active = (r1 > r0) & (u1 > x0)
+    disp.fill(-1)
+    c = np.arange(W, dtype=np.int32)[None, :]
+    inside = (c >= la.astype(np.int32)[:, None]) & (c < lb.astype(np.int32)[:, None])
+    np.subtract(np.uint8(INVALID), inside.view(np.uint8) * np.uint8(INVALID - BORDER),
+                out=state)  # BORDER on the run
+
     # per-row bounds; an inactive row gets empty ranges (its values stay 0)
     n_u = W + nd + 2  # shifted left pixels u (image column u + dmin)
     edges = np.stack([np.where(active, v, empty) for v, empty in (
-        (r0, n_u), (u1 + nd + 1, 0), (x0, n_u), (u1, 0), (r0, W), (r1, 0))] + [la, lb]).astype(
-            np.int32)
+        (r0, n_u), (u1 + nd + 1, 0), (x0, n_u), (u1, 0), (r0, W), (r1, 0))]).astype(np.int32)
     occ, novar = pens[OCC], pens[NOVAR]
-    values = np.array([occ, occ + novar, pens[REW]], np.float32)
-    pen_l = np.empty((nb, n_u, LANES), np.float32)
-    rew = np.empty((nb, n_u, LANES), np.float32)
-    pen_r = np.empty((nb, W, LANES), np.float32)
-    lane_penalties(edges, _varies(left, la, lb, True), textured, _varies(right, ra, rb, False),
-                   dmin, values, pen_l, rew, pen_r, disp, state)
+    values = np.array([occ, occ + novar, pens[REW], 0], np.float32)
+    flags = np.stack([_varies(left, la, lb, True), textured, _varies(right, ra, rb, False)])
+    lanes = np.empty((3, nb, n_u, LANES), np.float32)
+    lanes[:, nb - 1, :, H - (nb - 1) * LANES:] = 0  # rows past H
+    lane_penalties(edges, flags, dmin, values, lanes)
+    pen_l, rew, pen_r = lanes  # pen_r's columns from W on are never read
 
     geo = np.zeros((nb * LANES, GEO), np.int64)
     for k, v in ((LA, la), (LB, lb), (R0, r0), (R1, r1), (X0, x0), (U1, u1), (RA, ra),
@@ -128,55 +132,46 @@ def block_setup(left: np.ndarray, right: np.ndarray, lmask: np.ndarray, rmask: n
 
 
 @njit(cache=True, nogil=True)
-def lane_penalties(edges, gl, textured, gr, dmin, values, pen_l, rew, pen_r, disp, state):
-    """Per-pixel penalties and rewards of every block, written in the lanes' layout, and the
-    reset of the output rows.
+def lane_penalties(edges, flags, dmin, values, lanes):
+    """Per-pixel penalties and rewards of every block, written in the lanes' layout.
 
-    ``edges`` (8, H) int32: per row ``s0, s1`` (its span of shifted left pixels ``u``),
+    ``edges`` (6, H) int32: per row ``s0, s1`` (its span of shifted left pixels ``u``),
     ``e0, e1`` (where left occlusions may be cheap), ``r0, r1`` (its right pixels), all empty
-    for an inactive row, and ``la, lb`` (its left valid run); ``gl``/``textured``/``gr``
-    (H, W) bool: intensity variation of the left image (forward), texture of the left image,
-    variation of the right image (backward); ``values``: float32 ``[occ, occ + novar,
-    reward]``. Fills ``pen_l[b, u, lane]`` (occ where ``e0 <= u < e1`` and the left pixel
-    varies, else occ + novar, within ``[s0, s1)``), ``rew[b, u, lane]`` (the reward where
-    ``s0 <= u < e1`` and the left pixel is textured) and ``pen_r[b, x, lane]`` (occ or
-    occ + novar by the right pixel's variation within ``[r0, r1)``), 0 elsewhere and in rows
-    past H; ``disp`` -1 and ``state`` BORDER on ``[la, lb)``, INVALID elsewhere. The left pixel
-    of ``u`` is image column ``u + dmin``, clamped to ``W - 1``, a negative one wrapping around
-    as the kernels' indexing does (numba's wraparound). One pass by rows, no whole-image
-    temporaries: numpy's selects and transposes into this layout took ~2 ms of tsukuba's
-    matcher (bench/results/dp_lanes.md)."""
-    H, W = gr.shape
-    zero = np.float32(0.0)
-    occ, occ_nv, reward = values[0], values[1], values[2]
-    for r in range(pen_l.shape[0] * LANES):
-        b, lane = r // LANES, r % LANES
-        if r >= H:
-            for u in range(pen_l.shape[1]):
-                pen_l[b, u, lane] = zero
-                rew[b, u, lane] = zero
-            for x in range(W):
-                pen_r[b, x, lane] = zero
-            continue
-        s0, s1, e0, e1, q0, q1, la, lb = (edges[0, r], edges[1, r], edges[2, r], edges[3, r],
-                                          edges[4, r], edges[5, r], edges[6, r], edges[7, r])
-        for u in range(pen_l.shape[1]):
+    for an inactive row; ``flags`` (3, H, W) bool: intensity variation of the left image
+    (forward), texture of the left image, variation of the right image (backward);
+    ``values``: float32 ``[occ, occ + novar, reward, 0]``. Fills ``lanes[0, b, u, lane]``
+    (pen_l: occ where ``e0 <= u < e1`` and the left pixel varies, else occ + novar, within
+    ``[s0, s1)``), ``lanes[1]`` (rew: the reward where ``s0 <= u < e1`` and the left pixel is
+    textured) and ``lanes[2, b, x, lane]`` (pen_r: occ or occ + novar by the right pixel's
+    variation within ``[r0, r1)``), 0 elsewhere, for the H rows. The left pixel of ``u`` is
+    image column ``u + dmin``, clamped to ``W - 1``, a negative one wrapping around as the
+    kernels' indexing does (numba's wraparound). One pass, no whole-image temporaries:
+    numpy's selects and transposes into this layout took ~2 ms of tsukuba's matcher
+    (bench/results/dp_lanes.md); few arguments and one loop nest keep its compile short."""
+    H, W = flags.shape[1], flags.shape[2]
+    occ, occ_nv, reward, zero = values[0], values[1], values[2], values[3]  # in registers
+    for r in range(H):
+        b = r // LANES
+        lane = r % LANES
+        s0, s1, e0, e1 = edges[0, r], edges[1, r], edges[2, r], edges[3, r]
+        q0, q1 = edges[4, r], edges[5, r]
+        for u in range(lanes.shape[2]):
             c = u + dmin
             if c < 0:
                 c += W
-            c = min2(W - 1, max2(0, c))
+            if c < 0:
+                c = 0
+            if c > W - 1:
+                c = W - 1
             pl = zero
             rw = zero
-            if s0 <= u < s1:
-                pl = occ if e0 <= u < e1 and gl[r, c] else occ_nv
-                if u < e1 and textured[r, c]:
-                    rw = reward
-            pen_l[b, u, lane] = pl
-            rew[b, u, lane] = rw
-        for x in range(W):
             pr = zero
-            if q0 <= x < q1:
-                pr = occ if gr[r, x] else occ_nv
-            pen_r[b, x, lane] = pr
-            disp[r, x] = -1
-            state[r, x] = BORDER if la <= x < lb else INVALID
+            if s0 <= u < s1:
+                pl = occ if e0 <= u < e1 and flags[0, r, c] else occ_nv
+                if u < e1 and flags[1, r, c]:
+                    rw = reward
+            if q0 <= u < q1:
+                pr = occ if flags[2, r, u] else occ_nv
+            lanes[0, b, u, lane] = pl
+            lanes[1, b, u, lane] = rw
+            lanes[2, b, u, lane] = pr
