@@ -54,10 +54,11 @@ def longest_runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             np.where(has, end + 1, 0).astype(np.int64))
 
 
-def _varies(img: np.ndarray, lo: np.ndarray, hi: np.ndarray, forward: bool) -> np.ndarray:
-    """(H, W) bool: the 3-pixel window at each pixel (``[x, x + 2]`` forward, ``[x - 2, x]``
-    backward, cut at the row's segment ``[lo, hi)``) varies by >= VARIATION_THRESHOLD.
-    Only pixels inside the segment are meaningful."""
+def _varies(img: np.ndarray, lo: np.ndarray, hi: np.ndarray, forward: bool,
+            out: np.ndarray) -> None:
+    """``out`` (H, W) uint8: 1 where the 3-pixel window at the pixel (``[x, x + 2]`` forward,
+    ``[x - 2, x]`` backward, cut at the row's segment ``[lo, hi)``) varies by >=
+    VARIATION_THRESHOLD, else 0. Only pixels inside the segment are meaningful."""
     H, W = img.shape
     rows, cols = np.arange(H), np.arange(W)[None, :]
     # repeat the segment's edge pixel past it: plain shifted windows are then cut windows
@@ -75,7 +76,8 @@ def _varies(img: np.ndarray, lo: np.ndarray, hi: np.ndarray, forward: bool) -> n
     v = np.ascontiguousarray(v)
     mx = cv2.dilate(v, _RUN3, anchor=anchor, borderType=cv2.BORDER_REPLICATE)
     mn = cv2.erode(v, _RUN3, anchor=anchor, borderType=cv2.BORDER_REPLICATE)
-    return mx - mn >= VARIATION_THRESHOLD  # uint8: mx >= mn, no wrap
+    # mx - mn (uint8, mx >= mn: no wrap) >= VARIATION_THRESHOLD, as 1/0 straight into out
+    cv2.threshold(cv2.subtract(mx, mn), VARIATION_THRESHOLD - 1, 1, cv2.THRESH_BINARY, dst=out)
 
 
 def block_setup(left: np.ndarray, right: np.ndarray, lmask: np.ndarray, rmask: np.ndarray,
@@ -100,10 +102,13 @@ def block_setup(left: np.ndarray, right: np.ndarray, lmask: np.ndarray, rmask: n
     x0 = np.maximum(u0, r0)
     active = (r1 > r0) & (u1 > x0)
     disp.fill(-1)
-    c = np.arange(W, dtype=np.int32)[None, :]
-    inside = (c >= la.astype(np.int32)[:, None]) & (c < lb.astype(np.int32)[:, None])
-    np.subtract(np.uint8(INVALID), inside.view(np.uint8) * np.uint8(INVALID - BORDER),
-                out=state)  # BORDER on the run
+    if (la == 0).all() and (lb == W).all():  # no rectification fill: every pixel on the run
+        state.fill(BORDER)
+    else:
+        c = np.arange(W, dtype=np.int32)[None, :]
+        inside = (c >= la.astype(np.int32)[:, None]) & (c < lb.astype(np.int32)[:, None])
+        np.subtract(np.uint8(INVALID), inside.view(np.uint8) * np.uint8(INVALID - BORDER),
+                    out=state)  # BORDER on the run
 
     # per-row bounds; an inactive row gets empty ranges (its values stay 0)
     n_u = W + nd + 2  # shifted left pixels u (image column u + dmin)
@@ -111,7 +116,10 @@ def block_setup(left: np.ndarray, right: np.ndarray, lmask: np.ndarray, rmask: n
         (r0, n_u), (u1 + nd + 1, 0), (x0, n_u), (u1, 0), (r0, W), (r1, 0))]).astype(np.int32)
     occ, novar = pens[OCC], pens[NOVAR]
     values = np.array([occ, occ + novar, pens[REW], 0], np.float32)
-    flags = np.stack([_varies(left, la, lb, True), textured, _varies(right, ra, rb, False)])
+    flags = np.empty((3, H, W), np.uint8)
+    _varies(left, la, lb, True, flags[0])
+    np.copyto(flags[1], textured)
+    _varies(right, ra, rb, False, flags[2])
     lanes = np.empty((3, nb, n_u, LANES), np.float32)
     lanes[:, nb - 1, :, H - (nb - 1) * LANES:] = 0  # rows past H
     lane_penalties(edges, flags, dmin, values, lanes)
@@ -137,7 +145,7 @@ def lane_penalties(edges, flags, dmin, values, lanes):
 
     ``edges`` (6, H) int32: per row ``s0, s1`` (its span of shifted left pixels ``u``),
     ``e0, e1`` (where left occlusions may be cheap), ``r0, r1`` (its right pixels), all empty
-    for an inactive row; ``flags`` (3, H, W) bool: intensity variation of the left image
+    for an inactive row; ``flags`` (3, H, W) uint8 (0/1): intensity variation of the left image
     (forward), texture of the left image, variation of the right image (backward);
     ``values``: float32 ``[occ, occ + novar, reward, 0]``. Fills ``lanes[0, b, u, lane]``
     (pen_l: occ where ``e0 <= u < e1`` and the left pixel varies, else occ + novar, within
