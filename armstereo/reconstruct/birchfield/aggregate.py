@@ -12,7 +12,7 @@ penalty, without intensity variation (a slanted surface rather than an occlusion
 Each row has its own programme, but rows run :data:`.lanes.LANES` at a time in lockstep, one
 row per SIMD lane (:mod:`.lanes`): every step of the programme, the running minimum over
 disparities included, is then one vector operation, and node costs are summed as the forward
-pass goes. Every block's geometry and penalties are set up in numpy for the whole image
+pass goes. Every block's geometry and penalties are set up for the whole image at once
 (:mod:`.blocks`), then a Python loop drives the blocks through two small kernels (forward,
 backtrack), which numba compiles separately: far less compile time than one kernel with every
 step inlined (bench/results/dp_lanes.md, coldstart.md). For windows one column wide (the

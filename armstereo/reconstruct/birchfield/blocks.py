@@ -1,10 +1,13 @@
-"""The set-up of every block of rows for :mod:`.lanes`, in numpy for the whole image at once.
+"""The set-up of every block of rows for :mod:`.lanes`, for the whole image at once.
 
 What each block needs before its programme runs (each row's valid runs and ranges, its
 occlusion penalties and rewards, the reset of its output row) is a few whole-image array
-operations here. It is not where the time goes (a few ms per image), but as a numba kernel
-per block it was about a third of the matcher's first-run compile
-(bench/results/coldstart.md).
+operations here, and one small kernel (:func:`lane_penalties`) that writes the per-pixel
+penalties and rewards straight into the lanes' layout: in numpy, the selects and the
+transposes to that layout were ~2 ms of tsukuba's 7 ms matcher. The kernel is kept small
+(one loop nest, five arguments: ~0.3 s of first-run compile); the old per-block set-up
+kernel, with the geometry and the flags inlined, was a third of the matcher's compile
+(bench/results/coldstart.md, dp_lanes.md).
 
 The values are those of the kernels: the same integer geometry (:func:`.matcher.longest_run`,
 :func:`.matcher.row_geometry`), the same intensity-variation flags (:func:`.cost.variation_flags`)
@@ -88,8 +91,9 @@ def block_setup(left: np.ndarray, right: np.ndarray, lmask: np.ndarray, rmask: n
 
     Resets ``disp`` (-1) and ``state`` (INVALID, BORDER on the left valid run) in place.
     Returns ``(geo, pen_l, rew, pen_r, ranges)``: per block ``b``, ``geo[b]`` (GEO, LANES)
-    int64, ``pen_l[b]``/``rew[b]`` (W + nd + 2, LANES) and ``pen_r[b]`` (W, LANES) float32
-    as :func:`.lanes.lane_forward` and :func:`.lanes.lane_backtrack` read them, and
+    int64, ``pen_l[b]``/``rew[b]``/``pen_r[b]`` (W + nd + 2, LANES) float32 (``pen_r``'s
+    columns from W on unused) as :func:`.lanes.lane_forward` and :func:`.lanes.lane_backtrack`
+    read them, and
     ``ranges[b]`` the block's ``(x_begin, x_end)``.
     """
     H, W = lmask.shape
