@@ -59,10 +59,11 @@ def longest_runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _varies(img: np.ndarray, lo: np.ndarray, hi: np.ndarray, forward: bool,
-            out: np.ndarray) -> None:
-    """``out`` (H, W) uint8: 1 where the 3-pixel window at the pixel (``[x, x + 2]`` forward,
-    ``[x - 2, x]`` backward, cut at the row's segment ``[lo, hi)``) varies by >=
-    VARIATION_THRESHOLD, else 0. Only pixels inside the segment are meaningful."""
+            out: np.ndarray | None = None) -> np.ndarray:
+    """``out`` (H, W) uint8 (new if None), returned: 1 where the 3-pixel window at the pixel
+    (``[x, x + 2]`` forward, ``[x - 2, x]`` backward, cut at the row's segment ``[lo, hi)``)
+    varies by >= VARIATION_THRESHOLD, else 0. Only pixels inside the segment are
+    meaningful."""
     H, W = img.shape
     rows, cols = np.arange(H), np.arange(W)[None, :]
     # repeat the segment's edge pixel past it: plain shifted windows are then cut windows
@@ -81,7 +82,10 @@ def _varies(img: np.ndarray, lo: np.ndarray, hi: np.ndarray, forward: bool,
     mx = cv2.dilate(v, _RUN3, anchor=anchor, borderType=cv2.BORDER_REPLICATE)
     mn = cv2.erode(v, _RUN3, anchor=anchor, borderType=cv2.BORDER_REPLICATE)
     # mx - mn (uint8, mx >= mn: no wrap) >= VARIATION_THRESHOLD, as 1/0 straight into out
+    if out is None:
+        out = np.empty((H, W), np.uint8)
     cv2.threshold(cv2.subtract(mx, mn), VARIATION_THRESHOLD - 1, 1, cv2.THRESH_BINARY, dst=out)
+    return out
 
 
 def block_setup(left: np.ndarray, right: np.ndarray, lmask: np.ndarray, rmask: np.ndarray,
