@@ -12,7 +12,7 @@ penalty, without intensity variation (a slanted surface rather than an occlusion
 Each row has its own programme, but rows run :data:`.lanes.LANES` at a time in lockstep, one
 row per SIMD lane (:mod:`.lanes`): every step of the programme, the running minimum over
 disparities included, is then one vector operation, and node costs are summed as the forward
-pass goes. Every block's geometry and penalties are set up in numpy for the whole image
+pass goes. Every block's geometry and penalties are set up for the whole image at once
 (:mod:`.blocks`), then a Python loop drives the blocks through two small kernels (forward,
 backtrack), which numba compiles separately: far less compile time than one kernel with every
 step inlined (bench/results/dp_lanes.md, coldstart.md). For windows one column wide (the
@@ -94,8 +94,7 @@ def match_image_aggregated(left: np.ndarray, right: np.ndarray, lmask: np.ndarra
         textured = np.ones((H, W), np.bool_)
     starts = range(0, H, LANES)
     bounds = np.empty((6, W, starts[-1] + _vector_rows(ry)), np.float32)
-    rows = np.clip(np.arange(bounds.shape[2]) - ry, 0, H - 1)  # image row of each column
-    image_bounds(*(cv2.transpose(np.take(fill_outside(img, mask), rows, axis=0))
+    image_bounds(*(_rows_transposed(img, mask, ry, bounds.shape[2])
                    for img, mask in ((left, lmask), (right, rmask))), bounds)
     pens = _scaled_penalties(occ, rew, slant, npix, q)
     setup = block_setup(left, right, lmask, rmask, np.asarray(textured, np.bool_), dmin, nd,
@@ -112,6 +111,17 @@ def match_image_aggregated(left: np.ndarray, right: np.ndarray, lmask: np.ndarra
                         for blocks in jobs]:
                 job.result()
     return out
+
+
+def _rows_transposed(grey: np.ndarray, mask: np.ndarray, ry: int, nj: int) -> np.ndarray:
+    """(W, nj) uint8: the (H, W) image filled outside ``mask`` (:func:`fill_outside`),
+    its row ``j - ry`` (clamped to the image) as column ``j``, as :func:`.lanes.image_bounds`
+    reads it. The clamped rows by one border copy (no gather, no fill when every pixel is
+    valid)."""
+    H = grey.shape[0]
+    filled = np.ascontiguousarray(grey) if mask.all() else fill_outside(grey, mask)
+    return cv2.transpose(cv2.copyMakeBorder(filled, ry, nj - H - ry, 0, 0,
+                                            cv2.BORDER_REPLICATE))
 
 
 def _scaled_penalties(occ: int, rew: int, slant: int, npix: int, q: int) -> np.ndarray:
@@ -165,4 +175,4 @@ def _lane_work(bounds: np.ndarray, nd: int, rx: int, ry: int) -> tuple:
     costs = (bounds, np.empty((nd, _vector_rows(ry)), f32), np.empty((2, L), f32),
              np.empty((2 * rx + 1, nd, L), f32), np.empty((W, nd, L), f32))
     return (costs, np.full((W + 1, nd + 2, L), INF, f32), np.empty((W + nd + 1, L), f32),
-            np.empty(L, f32), np.empty((2, W), np.int32), np.empty(W, np.uint8))
+            np.empty(L, f32), np.empty((2, W + nd), np.int32), np.empty(W, np.uint8))

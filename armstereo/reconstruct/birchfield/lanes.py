@@ -258,8 +258,8 @@ def _node_update(b, c0, c1, p2, dk, pl, rw, rb, pr, run, out, slant, inf):
 def lane_backtrack(geo, phi, nodes, pen_l, rew, pen_r, slant, dmin, row0, ints, sloc, disp,
                    state):
     """Walk back each active lane's path (:func:`_walk`) and decode it into its output row.
-    ``nodes``: the node costs of the forward pass (its ``d``); ``ints`` (2, W) int32 and
-    ``sloc`` (W,) uint8 are scratch."""
+    ``nodes``: the node costs of the forward pass (its ``d``); ``ints`` (2, W + nd) int32
+    (a lane has up to W + nd - 1 left pixels) and ``sloc`` (W,) uint8 are scratch."""
     match, dloc = ints[0], ints[1]
     for lane in range(LANES):
         if not geo[ACTIVE, lane]:
@@ -269,8 +269,11 @@ def lane_backtrack(geo, phi, nodes, pen_l, rew, pen_r, slant, dmin, row0, ints, 
         if _walk(nodes[r0:, :, lane], r1 - r0, phi[r0:, :, lane], pen_l[r0:, lane],
                  rew[r0:, lane], pen_r[r0:, lane], slant, nx, match[:nx]):
             r = row0 + lane
-            _store_row(match[:nx], geo[LA, lane], geo[LB, lane], r0, x0 - r0, dmin, dloc,
-                       sloc, disp[r], state[r])
+            # a negative dmin can give a lane more left pixels than the image has columns:
+            # only the first W are decoded (as before ``ints`` was widened, when the walk
+            # wrote the rest past the end of its row)
+            _store_row(match[:min2(nx, disp.shape[1])], geo[LA, lane], geo[LB, lane], r0,
+                       x0 - r0, dmin, dloc, sloc, disp[r], state[r])
 
 
 @njit(cache=True, inner=True)
