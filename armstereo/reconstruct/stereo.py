@@ -104,9 +104,13 @@ from armstereo.reconstruct.birchfield.dp_exact import max_exact_width
 from armstereo.reconstruct.birchfield.matcher import DP_EXACT, DP_PRUNED, match_image
 from armstereo.reconstruct.birchfield.postprocess import postprocess as _postprocess
 from armstereo.reconstruct.birchfield.refine import (
+    flat_unsupported,
+    gradient_terms,
     left_right_mismatch,
+    median_beyond,
     refine_gradient,
     refine_parabola,
+    reject_hidden,
 )
 from armstereo.reconstruct.birchfield.vertical import match_image_vertical
 from armstereo.reconstruct.strips import each_strip, row_strips, strip_pool
@@ -390,24 +394,21 @@ def _masked_map(pool, strips, gl, gr, idx, dmin, *, fast, median, flat, columns,
     fits. Returns ``(masked, reject)``: float32 (NaN where rejected) and the bool rejections."""
     masked = np.empty(idx.shape, np.float32)
     reject = np.empty(idx.shape, np.bool_)
-    unsup = None if flat is None else np.empty(idx.shape, np.bool_)
-    rejects = each_strip(pool, strips, _first_pass, gl, gr, idx, dmin, fast, median, flat,
-                         masked, reject, unsup)
-    if flat is not None:  # the column test reads whole columns: on the whole map
-        at = np.concatenate(rejects)
-        if columns and at.size:
-            at = _column_rejects(masked, flat, FLAT_TOLERANCE, at)
-        unsup.ravel()[at] = True
+    each_strip(pool, strips, _first_pass, gl, gr, idx, dmin, fast, median, masked, reject)
+    unsup = None
+    if flat is not None:  # the column test reads whole columns: after every strip's first pass
+        unsup = np.empty(idx.shape, np.bool_)
+        each_strip(pool, strips, _flat_strip, masked, flat, columns, unsup)
     if unsup is not None or hidden is not None:
         each_strip(pool, strips, _second_pass, masked, reject, unsup, hidden)
     return masked, reject
 
 
-def _first_pass(first, stop, gl, gr, idx, dmin, fast, median, flat, masked, reject, unsup):
-    """Rows ``first .. stop - 1`` of :func:`_masked_map` up to the row test of the flat
-    pixels (whose rejects it returns, flat indices of the image): the windows of the
-    sub-pixel step and the median reach beyond the strip, so they run on a few rows more."""
-    H, W = idx.shape
+def _first_pass(first, stop, gl, gr, idx, dmin, fast, median, masked, reject):
+    """Rows ``first .. stop - 1`` of :func:`_masked_map` up to the test of the flat pixels:
+    the windows of the sub-pixel step and the median reach beyond the strip, so they run on
+    a few rows more."""
+    H = idx.shape[0]
     halo = (SUBPIXEL_WINDOW // 2 if fast else 0) + (MEDIAN_SIZE // 2 if median else 0)
     a, b = max(0, first - halo), min(H, stop + halo)
     part = idx[a:b]
@@ -420,21 +421,22 @@ def _first_pass(first, stop, gl, gr, idx, dmin, fast, median, flat, masked, reje
     np.less(idx[first:stop], 0, out=rej)
     np.copyto(rows, dense[first - a:stop - a])
     np.copyto(rows, np.float32(np.nan), where=rej)  # NaN where rejected so far
-    if flat is None:
-        return None
-    out, at = _unsupported_rows(rows, flat[first:stop], FLAT_TOLERANCE)
-    unsup[first:stop] = out
-    return at + first * W
+
+
+def _flat_strip(first, stop, masked, flat, columns, unsup):
+    """Rows ``first .. stop - 1`` of :func:`_unsupported` (of the whole map) into ``unsup``."""
+    W = masked.shape[1]
+    flat_unsupported(masked, flat, np.float64(FLAT_TOLERANCE), np.float64(FLAT_SLOPE),
+                     np.int64(2 * TEXTURE_WINDOW), np.bool_(columns), np.int64(first),
+                     np.int64(stop), np.empty(W, np.int64), np.empty(W, np.int64), unsup)
 
 
 def _second_pass(first, stop, masked, reject, unsup, hidden):
     """Rows ``first .. stop - 1``: NaN on the unsupported flat pixels, then on the hidden
     (``hidden``: the occlusion margin, None = not tested)."""
-    rows, rej = masked[first:stop], reject[first:stop]
-    if unsup is not None:
-        _reject(rows, rej, unsup[first:stop])
-    if hidden is not None:
-        _reject(rows, rej, _hidden_by_nearer(rows, hidden))
+    reject_hidden(masked, reject, reject if unsup is None else unsup, np.bool_(unsup is not None),
+                  np.bool_(hidden is not None), np.float64(0.0 if hidden is None else hidden),
+                  np.int64(first), np.int64(stop))
 
 
 def _reject(masked: np.ndarray, reject: np.ndarray, new: np.ndarray) -> None:
@@ -518,27 +520,11 @@ def _gradient_step(left: np.ndarray, right: np.ndarray, idx: np.ndarray,
     sum(g^2)``, clamped to +-1 (0 where the window has no gradient). Whole-image array
     operations, a few percent of the matching time.
     """
-    H, W = idx.shape
-    # g = (gl + gr) / 2 from central differences (the 1x3 Sobel kernel) scaled by 1/4: every
-    # value is a small integer times 1/4, so the arithmetic is exact in any order
-    quarter = 0.25
-    gl = cv2.Sobel(left, cv2.CV_32F, 1, 0, ksize=1, scale=quarter)
-    g = cv2.Sobel(right, cv2.CV_32F, 1, 0, ksize=1, scale=quarter)
-    # partner column minus one, xr - 1 = x - dmin - 1 - idx: usable where 0 <= xr - 1 <= W - 3
-    # (intp: what take() uses). idx read as unsigned puts the partner of -1 (no match) far
-    # outside, and an explicit conversion is cheaper than a mixed-type subtraction
-    at = np.asarray(idx, np.int32).view(np.uint32).astype(np.intp)
-    np.subtract(np.arange(-dmin - 1, W - dmin - 1, dtype=np.intp), at, out=at)
-    off = np.greater_equal(at.view(np.uintp), np.uintp(W - 2))  # one test for both ends
-    at += np.arange(1, H * W, W, dtype=np.intp)[:, None]  # flat index of the partner
-    # where off, any pixel will do (its g is zeroed): "clip" keeps the index in the image
-    g = g.ravel().take(at, mode="clip")
-    g += gl
-    g[off] = 0
-    # -e = R(x - d) - L(x), so that the window sum below is -sum(g e) (negation is exact)
-    minus_e = cv2.subtract(right.ravel().take(at, mode="clip"), left, dtype=cv2.CV_32F)
-    minus_e *= g
-    g *= g
+    # g is a small integer times 1/4 and e an integer: every term, and every window sum
+    # below, is exact in float32 whatever the order
+    g = np.empty(idx.shape, np.float32)
+    minus_e = np.empty(idx.shape, np.float32)  # -g e, so that the window sum is -sum(g e)
+    gradient_terms(left, right, np.asarray(idx, np.int32), np.int64(dmin), g, minus_e)
     win = (SUBPIXEL_WINDOW, SUBPIXEL_WINDOW)
     sgg = cv2.boxFilter(g, -1, win, dst=g, normalize=False)
     step = cv2.boxFilter(minus_e, -1, win, dst=minus_e, normalize=False)
@@ -594,14 +580,11 @@ def _hidden_by_nearer(disp: np.ndarray, margin: float) -> np.ndarray:
     ``x - d(x)`` is the pixel's right-image position; it is hidden when that lies at least
     ``margin`` pixels right of the leftmost right-image position of the pixels to its right
     (``margin = 1`` tolerates the one-pixel ties of slanted surfaces). NaN takes no part
-    (and is not marked).
+    (and is not marked). The map itself is not changed (:func:`reject_hidden` on a copy).
     """
-    H, W = disp.shape
-    xr = np.arange(W, dtype=np.float32) - disp  # NaN where no disparity
-    lowest = np.fmin.accumulate(xr[:, ::-1], axis=1)[:, ::-1]  # min over x' >= x; fmin skips NaN
-    hidden = np.zeros((H, W), np.bool_)  # the last column: nothing right of it
-    with np.errstate(invalid="ignore"):  # NaN compares False
-        np.greater_equal(xr[:, :-1], lowest[:, 1:] + margin, out=hidden[:, :-1])
+    hidden = np.zeros(disp.shape, np.bool_)
+    reject_hidden(np.array(disp, np.float32), hidden, hidden, np.bool_(False), np.bool_(True),
+                  np.float64(margin), np.int64(0), np.int64(disp.shape[0]))
     return hidden
 
 
@@ -613,112 +596,19 @@ def _unsupported(disp: np.ndarray, flat: np.ndarray, tolerance: float,
     and to its right on the same row both exist, differ by at most ``tolerance`` plus
     FLAT_SLOPE per pixel between them, and its disparity lies between theirs (+-
     ``tolerance``): a plain wall between two edges of the same surface, not a gap or a
-    background that the programme had to invent a disparity for. With ``columns``, a flat
-    pixel its row rejects is still kept when the same test along its column (above and below
-    it) confirms it. ``tolerance`` >= 0.
+    background that the programme had to invent a disparity for. A run of flat pixels with
+    a disparity next to a break (no disparity, or the image's edge) within two texture
+    windows needs only the anchor at its other end. With ``columns``, a flat pixel its row
+    rejects is still kept when the same test along its column (above and below it) confirms
+    it. ``tolerance`` >= 0. One pass per row (:func:`flat_unsupported`).
     """
-    out, at = _unsupported_rows(disp, flat, tolerance)
-    if columns and at.size:  # only the row's rejects need their column
-        at = _column_rejects(disp, flat, tolerance, at)
-    out.ravel()[at] = True
-    return out
-
-
-def _unsupported_rows(disp: np.ndarray, flat: np.ndarray,
-                      tolerance: float) -> tuple[np.ndarray, np.ndarray]:
-    """The row test of :func:`_unsupported`: ``(out, at)``, the flat pixels without a
-    disparity and the flat indices of those with one that their row does not confirm."""
-    finite = np.isfinite(disp)
-    query = flat & finite  # the only pixels that can be kept
-    out = flat & ~finite
-    at = np.flatnonzero(query)  # intp: take() converts any other index type first
-    if at.size == 0:
-        return out, at
-    anchor = ~flat & finite
-    lo, hi, first, last = _run_bounds(disp, query, anchor, tolerance)
-    d = disp.ravel().take(at)
-    count = last - first + 1  # at lists the runs' pixels in order
-    return out, at[~((d >= np.repeat(lo, count)) & (d <= np.repeat(hi, count)))]
-
-
-def _column_rejects(disp: np.ndarray, flat: np.ndarray, tolerance: float,
-                    at: np.ndarray) -> np.ndarray:
-    """Those of the row test's rejects ``at`` (flat indices) that their column does not
-    confirm either (:func:`_unsupported`'s ``columns``)."""
-    finite = np.isfinite(disp)
-    lo, hi = _column_bounds(disp, flat & finite, ~flat & finite, tolerance, at)
-    d = disp.ravel().take(at)
-    return at[~((d >= lo) & (d <= hi))]
-
-
-def _run_bounds(disp: np.ndarray, query: np.ndarray, anchor: np.ndarray,
-                tolerance: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The row test of :func:`_unsupported`, once per run of ``query`` pixels (flat pixels
-    with a disparity) on a row: ``(lo, hi, first, last)``, a pixel of the run is confirmed
-    when its disparity lies in ``[lo, hi]`` (NaN: none is); ``first``/``last``: the run's
-    flat indices. ``anchor``: textured pixels with a disparity.
-
-    The nearest anchor-or-break left of a run's pixel is the pixel before the run, the
-    nearest right of it the pixel after it (any pixel that is not a query is one or the
-    other): a run has an anchor on both sides (their disparities must agree), on one side
-    only (enough when the other end of the run is a break within two texture windows of
-    it), or none."""
-    W = query.shape[1]
-    begins = query.copy()
-    begins[:, 1:] &= ~query[:, :-1]
-    ends = query.copy()
-    ends[:, :-1] &= ~query[:, 1:]
-    first, last = np.flatnonzero(begins), np.flatnonzero(ends)
-    left, right = first - 1, last + 1  # -1 or past the end: masked by the row tests
-    marks, flat_d = anchor.ravel(), disp.ravel()
-    has_left = (first % W != 0) & marks.take(left, mode="wrap")
-    has_right = (right % W != 0) & marks.take(right, mode="wrap")
-    lo, hi = _neighbour_bounds(has_left, flat_d.take(left, mode="wrap"), has_right,
-                               flat_d.take(right, mode="wrap"), right - left, tolerance)
-    return lo, hi, first, last
-
-
-def _column_bounds(disp: np.ndarray, query: np.ndarray, anchor: np.ndarray, tolerance: float,
-                   at: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_run_bounds` along the columns, for the pixels of flat index ``at`` only
-    (query pixels): ``(lo, hi)`` per pixel. Only the query map is transposed, to find the
-    column runs; the neighbours are read from ``disp`` and ``anchor`` where they are."""
     H, W = disp.shape
-    columns = np.ascontiguousarray(query.T)
-    begins = columns.copy()
-    begins[:, 1:] &= ~columns[:, :-1]
-    ends = columns
-    ends[:, :-1] &= ~columns[:, 1:]
-    first, last = np.flatnonzero(begins), np.flatnonzero(ends)  # x * H + y
-    y, x = np.divmod(at, W)
-    run = np.searchsorted(first, x * H + y, side="right") - 1
-    top = first.take(run) % H - 1  # rows of the run's neighbours: -1 and H are outside
-    bottom = last.take(run) % H + 1
-    up, down = top * W + x, bottom * W + x  # out of the image at the ends: masked below
-    marks, flat_d = anchor.ravel(), disp.ravel()
-    has_up = (top >= 0) & marks.take(up, mode="wrap")
-    has_down = (bottom < H) & marks.take(down, mode="wrap")
-    return _neighbour_bounds(has_up, flat_d.take(up, mode="wrap"), has_down,
-                             flat_d.take(down, mode="wrap"), bottom - top, tolerance)
-
-
-def _neighbour_bounds(has_left: np.ndarray, d_left: np.ndarray, has_right: np.ndarray,
-                      d_right: np.ndarray, gap: np.ndarray,
-                      tolerance: float) -> tuple[np.ndarray, np.ndarray]:
-    """The test of :func:`_run_bounds` from a run's two neighbours (anchor or not, their
-    disparities, ``gap``: their distance in pixels): ``(lo, hi)``, NaN where rejected."""
-    nan = np.float32(np.nan)
-    d_left = np.where(has_left, d_left, nan)
-    d_right = np.where(has_right, d_right, nan)
-    # a run between a break and an anchor within two texture windows needs that anchor only
-    near = gap <= 2 * TEXTURE_WINDOW
-    d_left = np.where(~has_left & near, d_right, d_left)
-    d_right = np.where(~has_right & near, d_left, d_right)
-    with np.errstate(invalid="ignore"):
-        span = tolerance + FLAT_SLOPE * gap  # a slanted surface may change
-        agree = np.abs(d_left - d_right) <= span
-    lo = np.where(agree, np.fmin(d_left, d_right) - tolerance, nan)
-    return lo, np.fmax(d_left, d_right) + tolerance
+    out = np.empty((H, W), np.bool_)
+    flat_unsupported(np.ascontiguousarray(disp, np.float32), np.ascontiguousarray(flat, np.bool_),
+                     np.float64(tolerance), np.float64(FLAT_SLOPE), np.int64(2 * TEXTURE_WINDOW),
+                     np.bool_(columns), np.int64(0), np.int64(H), np.empty(W, np.int64),
+                     np.empty(W, np.int64), out)
+    return out
 
 
 def _texture_strength(grey: np.ndarray) -> np.ndarray:
@@ -800,21 +690,15 @@ def _consensus_rows(first: int, stop: int, src: np.ndarray, dst: np.ndarray, siz
 def _undecided(padded: np.ndarray, disp: np.ndarray, ok: np.ndarray, size: int, step: int,
                dmin: int, max_diff: float) -> np.ndarray:
     """(H, W) bool: answered pixels whose ``size`` median (of the uint8 codes ``padded``,
-    replicated by ``size // 2`` on each side) might lie more than ``max_diff`` from their
-    disparity; the median cannot change any other pixel.
+    replicated by ``size // 2`` on each side) lies beyond the codes acceptable for their
+    disparity, i.e. more than about ``max_diff`` from it; the median changes no other pixel.
 
-    The median exceeds the highest acceptable code ``b`` only if half the window's codes
-    do. The window is covered by 3x3 blocks; a block holds at most 9 codes above ``b`` when
-    its median is above it, at most 4 when only its maximum is, else none: when these
-    counts stay below half the window, the median is at most ``b``. Likewise below the
-    lowest acceptable code ``a`` with the blocks' minima (NaN, code 0, counts as below).
-    ``a`` and ``b`` are narrowed by CONSENSUS_MARGIN codes, more than float32 rounding
-    here and in the test itself, so that a pixel passed over can never change.
+    The acceptable codes ``[a, b]`` are narrowed by CONSENSUS_MARGIN codes, more than float32
+    rounding here and in the test itself, so that a pixel passed over can never change. The
+    median lies above ``b`` exactly when more than half the window's codes do, and below
+    ``a`` likewise: :func:`median_beyond` counts them.
     """
     H, W = disp.shape
-    r = size // 2
-    kernel = np.ones((3, 3), np.uint8)
-    hi, lo, mid = cv2.dilate(padded, kernel), cv2.erode(padded, kernel), cv2.medianBlur(padded, 3)
     x = disp - np.float32(dmin)  # exact (disp >= dmin - 1); NaN stays NaN, masked by ok
     if step != 1:
         x /= np.float32(step)
@@ -824,21 +708,10 @@ def _undecided(padded: np.ndarray, disp: np.ndarray, ok: np.ndarray, size: int, 
     # or below 0 changes nothing): uint8 saturation
     b = cv2.add(x, reach + 0.5 - CONSENSUS_MARGIN, dtype=cv2.CV_8U)
     a = cv2.add(x, 1.5 - reach + CONSENSUS_MARGIN, dtype=cv2.CV_8U)
-    counts = [np.zeros((H, W), np.uint8) for _ in range(4)]  # max > b, mid > b, min < a, mid < a
-    tests = ((hi, b, cv2.CMP_GT), (mid, b, cv2.CMP_GT), (lo, a, cv2.CMP_LT), (mid, a, cv2.CMP_LT))
-    centres = list(range(-(r - 1), r - 1, 3)) + [r - 1]  # 3x3 blocks covering the window
-    for dy in centres:
-        for dx in centres:
-            rows, cols = slice(r + dy, r + dy + H), slice(r + dx, r + dx + W)
-            for count, (image, bound, cmp) in zip(counts, tests, strict=True):
-                # 255 where true: subtracting it adds one (uint8 wraps)
-                np.subtract(count, cv2.compare(image[rows, cols], bound, cmp), out=count)
-    half = size * size // 2 + 1  # codes beyond a bound that move the median past it
-    high = cv2.addWeighted(counts[0], 4, counts[1], 5, 0, dtype=cv2.CV_16U) >= half
-    low = cv2.addWeighted(counts[2], 4, counts[3], 5, 0, dtype=cv2.CV_16U) >= half
-    high |= low
-    high &= ok
-    return high
+    out = np.empty((H, W), np.bool_)
+    median_beyond(padded, a, b, np.empty(W, np.uint8), np.empty(W, np.uint8), out)
+    out &= ok
+    return out
 
 
 def _window_median(padded: np.ndarray, at: np.ndarray, size: int, width: int) -> np.ndarray:
