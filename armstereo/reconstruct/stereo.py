@@ -104,13 +104,11 @@ from armstereo.reconstruct.birchfield.dp_exact import max_exact_width
 from armstereo.reconstruct.birchfield.matcher import DP_EXACT, DP_PRUNED, match_image
 from armstereo.reconstruct.birchfield.postprocess import postprocess as _postprocess
 from armstereo.reconstruct.birchfield.refine import (
-    flat_unsupported,
     gradient_terms,
     left_right_mismatch,
-    median_beyond,
     refine_gradient,
     refine_parabola,
-    reject_hidden,
+    row_rejects,
 )
 from armstereo.reconstruct.birchfield.vertical import match_image_vertical
 from armstereo.reconstruct.strips import each_strip, row_strips, strip_pool
@@ -395,12 +393,9 @@ def _masked_map(pool, strips, gl, gr, idx, dmin, *, fast, median, flat, columns,
     masked = np.empty(idx.shape, np.float32)
     reject = np.empty(idx.shape, np.bool_)
     each_strip(pool, strips, _first_pass, gl, gr, idx, dmin, fast, median, masked, reject)
-    unsup = None
-    if flat is not None:  # the column test reads whole columns: after every strip's first pass
-        unsup = np.empty(idx.shape, np.bool_)
-        each_strip(pool, strips, _flat_strip, masked, flat, columns, unsup)
-    if unsup is not None or hidden is not None:
-        each_strip(pool, strips, _second_pass, masked, reject, unsup, hidden)
+    if flat is not None or hidden is not None:
+        _flat_and_hidden(masked, reject, flat, FLAT_TOLERANCE, columns, hidden, apply=True,
+                         pool=pool, strips=strips)
     return masked, reject
 
 
@@ -421,22 +416,6 @@ def _first_pass(first, stop, gl, gr, idx, dmin, fast, median, masked, reject):
     np.less(idx[first:stop], 0, out=rej)
     np.copyto(rows, dense[first - a:stop - a])
     np.copyto(rows, np.float32(np.nan), where=rej)  # NaN where rejected so far
-
-
-def _flat_strip(first, stop, masked, flat, columns, unsup):
-    """Rows ``first .. stop - 1`` of :func:`_unsupported` (of the whole map) into ``unsup``."""
-    W = masked.shape[1]
-    flat_unsupported(masked, flat, np.float64(FLAT_TOLERANCE), np.float64(FLAT_SLOPE),
-                     np.int64(2 * TEXTURE_WINDOW), np.bool_(columns), np.int64(first),
-                     np.int64(stop), np.empty(W, np.int64), np.empty(W, np.int64), unsup)
-
-
-def _second_pass(first, stop, masked, reject, unsup, hidden):
-    """Rows ``first .. stop - 1``: NaN on the unsupported flat pixels, then on the hidden
-    (``hidden``: the occlusion margin, None = not tested)."""
-    reject_hidden(masked, reject, reject if unsup is None else unsup, np.bool_(unsup is not None),
-                  np.bool_(hidden is not None), np.float64(0.0 if hidden is None else hidden),
-                  np.int64(first), np.int64(stop))
 
 
 def _reject(masked: np.ndarray, reject: np.ndarray, new: np.ndarray) -> None:
@@ -580,11 +559,10 @@ def _hidden_by_nearer(disp: np.ndarray, margin: float) -> np.ndarray:
     ``x - d(x)`` is the pixel's right-image position; it is hidden when that lies at least
     ``margin`` pixels right of the leftmost right-image position of the pixels to its right
     (``margin = 1`` tolerates the one-pixel ties of slanted surfaces). NaN takes no part
-    (and is not marked). The map itself is not changed (:func:`reject_hidden` on a copy).
+    (and is not marked). The map itself is not changed.
     """
     hidden = np.zeros(disp.shape, np.bool_)
-    reject_hidden(np.array(disp, np.float32), hidden, hidden, np.bool_(False), np.bool_(True),
-                  np.float64(margin), np.int64(0), np.int64(disp.shape[0]))
+    _flat_and_hidden(np.array(disp, np.float32), hidden, None, 0.0, False, margin, apply=False)
     return hidden
 
 
@@ -600,15 +578,49 @@ def _unsupported(disp: np.ndarray, flat: np.ndarray, tolerance: float,
     a disparity next to a break (no disparity, or the image's edge) within two texture
     windows needs only the anchor at its other end. With ``columns``, a flat pixel its row
     rejects is still kept when the same test along its column (above and below it) confirms
-    it. ``tolerance`` >= 0. One pass per row (:func:`flat_unsupported`).
+    it. ``tolerance`` >= 0.
     """
+    disp = np.ascontiguousarray(disp, np.float32)
+    return _flat_and_hidden(disp, np.empty(disp.shape, np.bool_), flat, tolerance, columns,
+                            None, apply=False)
+
+
+def _flat_and_hidden(disp: np.ndarray, reject: np.ndarray, flat: np.ndarray | None,
+                     tolerance: float, columns: bool, hidden: float | None, *, apply: bool,
+                     pool=None, strips: list[tuple[int, int]] | None = None) -> np.ndarray:
+    """:func:`_unsupported` of the (H, W) float32 ``disp`` (None ``flat``: not tested), with
+    ``apply`` set to NaN in ``disp`` and True in ``reject`` there, then the pixels
+    :func:`_hidden_by_nearer` finds with the margin ``hidden`` (None: not tested) likewise
+    (in place, :func:`row_rejects`). Returns the unsupported pixels. ``strips`` of rows run
+    side by side on ``pool`` (the column test first, on as many strips of columns)."""
     H, W = disp.shape
+    strips = strips or [(0, H)]
     out = np.empty((H, W), np.bool_)
-    flat_unsupported(np.ascontiguousarray(disp, np.float32), np.ascontiguousarray(flat, np.bool_),
-                     np.float64(tolerance), np.float64(FLAT_SLOPE), np.int64(2 * TEXTURE_WINDOW),
-                     np.bool_(columns), np.int64(0), np.int64(H), np.empty(W, np.int64),
-                     np.empty(W, np.int64), out)
+    kind = along = None
+    if flat is not None:
+        kind = np.isfinite(disp).view(np.uint8)  # a new array: 2 * flat + finite (KIND_*)
+        kind += np.ascontiguousarray(flat, np.bool_).view(np.uint8) * np.uint8(2)
+        if columns:  # the same test along the columns, on transposed copies
+            across = np.empty((W, H), np.bool_)
+            each_strip(pool, row_strips(W, len(strips)), _rows, np.ascontiguousarray(disp.T),
+                       np.ascontiguousarray(kind.T), None, across, tolerance, None, False,
+                       across)
+            along = np.ascontiguousarray(across.T)
+    each_strip(pool, strips, _rows, disp, kind, along, reject, tolerance, hidden, apply, out)
     return out
+
+
+def _rows(first: int, stop: int, disp: np.ndarray, kind: np.ndarray | None,
+          along: np.ndarray | None, reject: np.ndarray, tolerance: float, hidden: float | None,
+          apply: bool, out: np.ndarray) -> None:
+    """Rows ``first .. stop - 1`` of :func:`_flat_and_hidden` (:func:`row_rejects`; None
+    arrays: not used)."""
+    no_kind = np.empty((0, 0), np.uint8)  # read only with kind
+    row_rejects(disp, no_kind if kind is None else kind, out if along is None else along, reject,
+                np.float64(tolerance), np.float64(FLAT_SLOPE), np.int64(2 * TEXTURE_WINDOW),
+                np.float64(0.0 if hidden is None else hidden), np.bool_(kind is not None),
+                np.bool_(along is not None), np.bool_(apply), np.bool_(hidden is not None),
+                np.int64(first), np.int64(stop), out)
 
 
 def _texture_strength(grey: np.ndarray) -> np.ndarray:
@@ -690,15 +702,21 @@ def _consensus_rows(first: int, stop: int, src: np.ndarray, dst: np.ndarray, siz
 def _undecided(padded: np.ndarray, disp: np.ndarray, ok: np.ndarray, size: int, step: int,
                dmin: int, max_diff: float) -> np.ndarray:
     """(H, W) bool: answered pixels whose ``size`` median (of the uint8 codes ``padded``,
-    replicated by ``size // 2`` on each side) lies beyond the codes acceptable for their
-    disparity, i.e. more than about ``max_diff`` from it; the median changes no other pixel.
+    replicated by ``size // 2`` on each side) might lie more than ``max_diff`` from their
+    disparity; the median cannot change any other pixel.
 
-    The acceptable codes ``[a, b]`` are narrowed by CONSENSUS_MARGIN codes, more than float32
-    rounding here and in the test itself, so that a pixel passed over can never change. The
-    median lies above ``b`` exactly when more than half the window's codes do, and below
-    ``a`` likewise: :func:`median_beyond` counts them.
+    The median exceeds the highest acceptable code ``b`` only if half the window's codes
+    do. The window is covered by 3x3 blocks; a block holds at most 9 codes above ``b`` when
+    its median is above it, at most 4 when only its maximum is, else none: when these
+    counts stay below half the window, the median is at most ``b``. Likewise below the
+    lowest acceptable code ``a`` with the blocks' minima (NaN, code 0, counts as below).
+    ``a`` and ``b`` are narrowed by CONSENSUS_MARGIN codes, more than float32 rounding
+    here and in the test itself, so that a pixel passed over can never change.
     """
     H, W = disp.shape
+    r = size // 2
+    kernel = np.ones((3, 3), np.uint8)
+    hi, lo, mid = cv2.dilate(padded, kernel), cv2.erode(padded, kernel), cv2.medianBlur(padded, 3)
     x = disp - np.float32(dmin)  # exact (disp >= dmin - 1); NaN stays NaN, masked by ok
     if step != 1:
         x /= np.float32(step)
@@ -708,10 +726,21 @@ def _undecided(padded: np.ndarray, disp: np.ndarray, ok: np.ndarray, size: int, 
     # or below 0 changes nothing): uint8 saturation
     b = cv2.add(x, reach + 0.5 - CONSENSUS_MARGIN, dtype=cv2.CV_8U)
     a = cv2.add(x, 1.5 - reach + CONSENSUS_MARGIN, dtype=cv2.CV_8U)
-    out = np.empty((H, W), np.bool_)
-    median_beyond(padded, a, b, np.empty(W, np.uint8), np.empty(W, np.uint8), out)
-    out &= ok
-    return out
+    counts = [np.zeros((H, W), np.uint8) for _ in range(4)]  # max > b, mid > b, min < a, mid < a
+    tests = ((hi, b, cv2.CMP_GT), (mid, b, cv2.CMP_GT), (lo, a, cv2.CMP_LT), (mid, a, cv2.CMP_LT))
+    centres = list(range(-(r - 1), r - 1, 3)) + [r - 1]  # 3x3 blocks covering the window
+    for dy in centres:
+        for dx in centres:
+            rows, cols = slice(r + dy, r + dy + H), slice(r + dx, r + dx + W)
+            for count, (image, bound, cmp) in zip(counts, tests, strict=True):
+                # 255 where true: subtracting it adds one (uint8 wraps)
+                np.subtract(count, cv2.compare(image[rows, cols], bound, cmp), out=count)
+    half = size * size // 2 + 1  # codes beyond a bound that move the median past it
+    high = cv2.addWeighted(counts[0], 4, counts[1], 5, 0, dtype=cv2.CV_16U) >= half
+    low = cv2.addWeighted(counts[2], 4, counts[3], 5, 0, dtype=cv2.CV_16U) >= half
+    high |= low
+    high &= ok
+    return high
 
 
 def _window_median(padded: np.ndarray, at: np.ndarray, size: int, width: int) -> np.ndarray:

@@ -192,37 +192,6 @@ def refine_gradient(left, right, disp, radius, iterations, max_shift):
 
 
 @njit(cache=True, nogil=True)
-def median_beyond(padded, low, high, above, below, out):
-    """Where the median of a square window of codes may lie outside ``[low, high]``.
-
-    ``padded``: (H + s - 1, W + s - 1) uint8 codes, the window of output pixel ``(y, x)``
-    being ``padded[y:y + s, x:x + s]``; ``low``/``high``: (H, W) uint8 bounds per pixel;
-    ``above``/``below``: (W,) uint8 work rows (s * s <= 255). Sets ``out[y, x]`` (bool) when
-    more than half the window's codes lie above ``high[y, x]`` or below ``low[y, x]``: exactly
-    where the window's median does. Counting all s * s codes of every window is cheap as
-    byte arithmetic along the row (vectorised), and needs no bounds from smaller blocks.
-    """
-    H, W = out.shape
-    size = padded.shape[0] - H + 1
-    half = size * size // 2 + 1
-    for y in range(H):
-        hi = high[y]
-        lo = low[y]
-        for x in range(W):
-            above[x] = 0
-            below[x] = 0
-        for dy in range(size):
-            row = padded[y + dy]
-            for dx in range(size):
-                for x in range(W):
-                    v = row[x + dx]
-                    above[x] += np.uint8(v > hi[x])
-                    below[x] += np.uint8(v < lo[x])
-        for x in range(W):
-            out[y, x] = above[x] >= half or below[x] >= half
-
-
-@njit(cache=True, nogil=True)
 def gradient_terms(left, right, idx, dmin, gg, ge):
     """Per-pixel terms of the fast sub-pixel step: ``gg = g^2`` and ``ge = -g e``.
 
@@ -256,128 +225,83 @@ def gradient_terms(left, right, idx, dmin, gg, ge):
             erow[x] = np.float32(np.int32(rrow[xr]) - np.int32(lrow[x])) * g
 
 
-@njit(cache=True, inner=True)
-def _neighbour_bounds(has_a, d_a, has_b, d_b, gap, tolerance, slope, reach):
-    """``(lo, hi)``: the disparities a run of flat pixels between the neighbours ``a`` and
-    ``b`` (``gap`` pixels apart; ``has_*``: textured with a disparity ``d_*``) may take; lo
-    is NaN when none may. One neighbour is enough when the other is a break within ``reach``
-    pixels; two must agree within ``tolerance + slope * gap`` (in float64, as the row test
-    of :func:`armstereo.reconstruct.stereo._unsupported` states it)."""
-    nan = np.float32(np.nan)
-    if not has_a:
-        d_a = nan
-    if not has_b:
-        d_b = nan
-    if gap <= reach:
-        if not has_a:
-            d_a = d_b
-        if not has_b:
-            d_b = d_a
-    if not np.float64(abs(d_a - d_b)) <= tolerance + slope * np.float64(gap):  # NaN: reject
-        return nan, nan
-    tol = np.float32(tolerance)
-    return min(d_a, d_b) - tol, max(d_a, d_b) + tol
-
-
-@njit(cache=True, inner=True)
-def _is_anchor(disp, flat, y, x):
-    return not flat[y, x] and np.isfinite(disp[y, x])
+# kinds of pixel for :func:`row_rejects`: 2 * flat + has a disparity
+KIND_BREAK, KIND_ANCHOR, KIND_HOLE, KIND_QUERY = 0, 1, 2, 3
 
 
 @njit(cache=True, nogil=True)
-def flat_unsupported(disp, flat, tolerance, slope, reach, columns, first, stop, top, bottom,
-                     out):
-    """Rows ``first .. stop - 1`` of ``out`` (bool): the flat pixels without a disparity and
-    those whose disparity the nearest textured pixels of their row (with ``columns``: nor
-    of their column) do not confirm.
+def row_rejects(disp, kind, along, reject, tolerance, slope, reach, margin, test, use_along,
+                apply, hidden, first, stop, out):
+    """Rows ``first .. stop - 1``: the flat pixels a row does not confirm, then those a
+    nearer pixel hides; one kernel for both (and for the test along the columns, run on
+    transposed copies), as each costs its own compile on the first run.
 
-    ``disp``: (H, W) float32, NaN = none; ``flat``: (H, W) bool. A run of flat pixels with a
-    disparity is bounded by the pixels just before and after it (a textured pixel with a
-    disparity, an anchor, or else a break); :func:`_neighbour_bounds` gives the disparities
-    its pixels may take. ``top``/``bottom``: (W,) int64 work rows. Reads every row of
-    ``disp`` (the column test), writes only rows ``first .. stop - 1`` of ``out``.
-    """
-    H, W = disp.shape
-    for y in range(first, stop):
-        d = disp[y]
-        f = flat[y]
-        o = out[y]
-        x = 0
-        while x < W:
-            if not (f[x] and np.isfinite(d[x])):
-                o[x] = f[x]
-                x += 1
-                continue
-            s = x
-            while x < W and f[x] and np.isfinite(d[x]):
-                x += 1
-            left, right = s - 1, x  # -1 or W: outside the row
-            lo, hi = _neighbour_bounds(left >= 0 and _is_anchor(disp, flat, y, max(left, 0)),
-                                       d[max(left, 0)],
-                                       right < W and _is_anchor(disp, flat, y, min(right, W - 1)),
-                                       d[min(right, W - 1)], right - left, tolerance, slope,
-                                       reach)
-            for i in range(s, x):
-                o[i] = not (d[i] >= lo and d[i] <= hi)
-    if not columns:
-        return
-    # the column test, for the row test's rejects: top[x] is the last pixel above the
-    # current row that is no flat pixel with a disparity (-1: none), bottom[x] the first
-    # below it, found when first needed (H: none; -1: not yet)
-    for x in range(W):
-        t = first - 1
-        while t >= 0 and flat[t, x] and np.isfinite(disp[t, x]):
-            t -= 1
-        top[x] = t
-        bottom[x] = -1
-    for y in range(first, stop):
-        d = disp[y]
-        f = flat[y]
-        o = out[y]
-        for x in range(W):
-            if not (f[x] and np.isfinite(d[x])):
-                top[x] = y
-                continue
-            if not o[x]:
-                continue
-            if bottom[x] <= y:
-                b = y + 1
-                while b < H and flat[b, x] and np.isfinite(disp[b, x]):
-                    b += 1
-                bottom[x] = b
-            t, b = top[x], bottom[x]
-            lo, hi = _neighbour_bounds(t >= 0 and _is_anchor(disp, flat, max(t, 0), x),
-                                       disp[max(t, 0), x],
-                                       b < H and _is_anchor(disp, flat, min(b, H - 1), x),
-                                       disp[min(b, H - 1), x], b - t, tolerance, slope, reach)
-            o[x] = not (d[x] >= lo and d[x] <= hi)
+    ``test``: ``out`` (bool) is set on the flat pixels whose row does not confirm their
+    disparity, and on those without one, and with ``use_along`` cleared where ``along``
+    (bool) is False. ``disp``: (H, W) float32; ``kind``: (H, W) uint8, ``2 * flat +
+    finite(disp)`` (KIND_*). A run of flat pixels with a disparity (queries) is bounded by
+    the pixels just before and after it: textured with a disparity (anchors), or else
+    breaks, as is the row's edge. With two anchors, their disparities must agree within
+    ``tolerance + slope * gap`` (float64; ``gap``: their distance); one anchor is enough
+    when the break at the other end is at most ``reach`` pixels from it. A pixel of the run
+    is confirmed when its disparity lies within ``tolerance`` (float32) of the anchors'
+    range. ``apply``: NaN in ``disp`` and True in ``reject`` where ``out`` is set.
 
-
-@njit(cache=True, nogil=True)
-def reject_hidden(disp, reject, unsup, use_unsup, hidden, margin, first, stop):
-    """Rows ``first .. stop - 1``, in place: NaN in ``disp`` and True in ``reject`` on the
-    ``unsup`` pixels (if ``use_unsup``), then (if ``hidden``) on the pixels a nearer pixel
-    of the row hides in the right view: ``x - d(x)`` at least ``margin`` pixels right of the
+    ``hidden``: then NaN in ``disp`` and True in ``reject`` on the pixels a nearer pixel of
+    the row hides in the right view: ``x - d(x)`` at least ``margin`` pixels right of the
     leftmost ``x' - d(x')`` of the pixels right of it (NaN takes no part). float32 as numpy
-    states it: ``float32(x) - d``, ``lowest + float32(margin)``."""
+    states it: ``float32(x) - d``, ``lowest + float32(margin)``.
+    """
     W = disp.shape[1]
+    nan = np.float32(np.nan)
+    tol = np.float32(tolerance)
     m = np.float32(margin)
     for y in range(first, stop):
         d = disp[y]
+        o = out[y]
         r = reject[y]
-        if use_unsup:
-            u = unsup[y]
-            for x in range(W):
-                if u[x]:
-                    r[x] = True
-                    d[x] = np.nan
+        if test:
+            k = kind[y]
+            x = 0
+            while x < W:
+                if k[x] != KIND_QUERY:
+                    o[x] = k[x] == KIND_HOLE
+                    x += 1
+                    continue
+                s = x
+                while x < W and k[x] == KIND_QUERY:
+                    x += 1
+                gap = x - s + 1
+                d_a = d[s - 1] if s > 0 and k[s - 1] == KIND_ANCHOR else nan
+                d_b = d[x] if x < W and k[x] == KIND_ANCHOR else nan
+                if gap <= reach:
+                    if np.isnan(d_a):
+                        d_a = d_b
+                    elif np.isnan(d_b):
+                        d_b = d_a
+                lo = hi = nan  # NaN: no pixel of the run is confirmed
+                if np.float64(abs(d_a - d_b)) <= tolerance + slope * np.float64(gap):
+                    lo, hi = (d_a, d_b) if d_a <= d_b else (d_b, d_a)
+                    lo -= tol
+                    hi += tol
+                for i in range(s, x):
+                    o[i] = not (d[i] >= lo and d[i] <= hi)
+            if use_along:
+                a = along[y]
+                for x in range(W):
+                    o[x] = o[x] and a[x]
+            if apply:
+                for x in range(W):
+                    if o[x]:
+                        r[x] = True
+                        d[x] = nan
         if not hidden:
             continue
-        lowest = np.float32(np.nan)
+        lowest = nan
         for x in range(W - 1, -1, -1):
             xr = np.float32(x) - d[x]
             if xr >= lowest + m:  # False while lowest is NaN, and for NaN
                 r[x] = True
-                d[x] = np.nan
+                d[x] = nan
             if np.isnan(lowest) or xr < lowest:
                 lowest = xr
