@@ -262,10 +262,13 @@ def row_rejects(disp, kind, along, reject, tolerance, slope, reach, margin, test
         r = reject[y]
         if test:
             k = kind[y]
+            a = along[y]
             x = 0
-            while x < W:
+            while x < W:  # one pass: (scalar) loops of their own cost compile time
                 if k[x] != KIND_QUERY:
-                    o[x] = k[x] == KIND_HOLE
+                    o[x] = k[x] == KIND_HOLE  # no disparity: already NaN
+                    if o[x] and apply:
+                        r[x] = True
                     x += 1
                     continue
                 s = x
@@ -284,17 +287,11 @@ def row_rejects(disp, kind, along, reject, tolerance, slope, reach, margin, test
                     lo, hi = (d_a, d_b) if d_a <= d_b else (d_b, d_a)
                     lo -= tol
                     hi += tol
-                for i in range(s, x):
-                    o[i] = not (d[i] >= lo and d[i] <= hi)
-            if use_along:
-                a = along[y]
-                for x in range(W):
-                    o[x] = o[x] and a[x]
-            if apply:
-                for x in range(W):
-                    if o[x]:
-                        r[x] = True
-                        d[x] = nan
+                for i in range(s, x):  # the run's neighbours are not queries: never changed
+                    o[i] = not (d[i] >= lo and d[i] <= hi) and (a[i] or not use_along)
+                    if o[i] and apply:
+                        r[i] = True
+                        d[i] = nan
         if not hidden:
             continue
         lowest = nan
