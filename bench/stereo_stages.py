@@ -61,8 +61,10 @@ STAGES = [
     ("stereo", "_unsupported", "unsupported flat pixels"),
     ("stereo", "_unsupported_rows", "unsupported flat pixels"),
     ("stereo", "_column_rejects", "unsupported flat pixels"),
-    ("stereo", "_flat_rows", "unsupported flat pixels"),  # the row-kernel version
     ("stereo", "_hidden_by_nearer", "hidden by nearer"),
+    # both tests in one row kernel (refine.row_rejects)
+    ("stereo", "_flat_and_hidden", "unsupported flat + hidden (one kernel)"),
+    ("stereo", "_rows", "unsupported flat + hidden (one kernel)"),
     ("stereo", "left_right_mismatch", "left-right check"),
     ("stereo", "_photo_inconsistent", "photo check"),
     ("stereo", "refine_gradient", "sub-pixel: gradient"),
@@ -76,7 +78,7 @@ STAGES = [
     ("stereo", "_reject_invalid_partners", "invalid partners"),
     ("stereo", "_masked_map", "rest of birchfield()"),  # the strips' bookkeeping
     ("stereo", "_first_pass", "rest of birchfield()"),
-    ("stereo", "_second_pass", "hidden by nearer"),  # NaN on unsupported + hidden pixels
+    ("stereo", "_second_pass", "rest of birchfield()"),
     ("stereo", "birchfield", "rest of birchfield()"),
 ]
 DP = "DP kernels"
