@@ -508,9 +508,9 @@ def _gradient_step(left: np.ndarray, right: np.ndarray, idx: np.ndarray,
     win = (SUBPIXEL_WINDOW, SUBPIXEL_WINDOW)
     sgg = cv2.boxFilter(g, -1, win, dst=g, normalize=False)
     step = cv2.boxFilter(minus_e, -1, win, dst=minus_e, normalize=False)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        np.divide(step, sgg, out=step)
-    np.copyto(step, 0, where=sgg <= SUBPIXEL_MIN_GRADIENT)  # no gradient: no step
+    # no gradient, no step: where sgg is 0 (the sums are multiples of 1/16, so none lies
+    # between 0 and the threshold) every g, and so the sum of g e, is 0 too: step keeps it
+    np.divide(step, sgg, out=step, where=sgg > SUBPIXEL_MIN_GRADIENT)
     return np.clip(step, -SUBPIXEL_MAX_SHIFT, SUBPIXEL_MAX_SHIFT, out=step)
 
 
@@ -667,7 +667,8 @@ def _consensus_rows(first: int, stop: int, src: np.ndarray, dst: np.ndarray, siz
     ok_part = np.isfinite(part)
     step = max(1, -(-(dmax + 1) // CONSENSUS_LEVELS))  # disparities per code
     with np.errstate(invalid="ignore"):  # NaN's code is set below
-        code = np.rint((part - dmin) / step).astype(np.uint8)
+        x = part - np.float32(dmin) if dmin else part  # no pass for nothing (exact either way)
+        code = np.rint(x / np.float32(step) if step != 1 else x).astype(np.uint8)
     code += 1
     np.multiply(code, ok_part, out=code)  # NaN: 0
     disp, ok = dst[first:stop], ok_part[first - a:stop - a]
@@ -718,9 +719,11 @@ def _undecided(padded: np.ndarray, disp: np.ndarray, ok: np.ndarray, size: int, 
     r = size // 2
     kernel = np.ones((3, 3), np.uint8)
     hi, lo, mid = cv2.dilate(padded, kernel), cv2.erode(padded, kernel), cv2.medianBlur(padded, 3)
-    x = disp - np.float32(dmin)  # exact (disp >= dmin - 1); NaN stays NaN, masked by ok
-    if step != 1:
-        x /= np.float32(step)
+    x = disp  # read only: the codes' scale, exact (disp >= dmin - 1); NaN is masked by ok
+    if dmin or step != 1:
+        x = disp - np.float32(dmin)
+        if step != 1:
+            x /= np.float32(step)
     reach = max_diff / step  # codes
     # highest and lowest acceptable codes, floor(x + reach + 1) and ceil(x - reach + 1) as
     # rounding (ties to even) of half a code less and more, clamped to 0..255 (a median at
