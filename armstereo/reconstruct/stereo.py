@@ -410,11 +410,14 @@ def _first_pass(first, stop, gl, gr, idx, dmin, fast, median, masked, reject):
     dense = part.astype(np.float32)  # _match has set -1 on every pixel it rejects
     if fast:
         dense += _gradient_step(gl[a:b], gr[a:b], part, dmin)
-    if median:
-        dense = _median(dense, part)
     rows, rej = masked[first:stop], reject[first:stop]
     np.less(idx[first:stop], 0, out=rej)
-    np.copyto(rows, dense[first - a:stop - a])
+    if median and (a, b) == (first, stop):  # the whole image: straight into the map
+        _median(dense, rows)
+    else:
+        if median:
+            dense = _median(dense)
+        np.copyto(rows, dense[first - a:stop - a])
     np.copyto(rows, np.float32(np.nan), where=rej)  # NaN where rejected so far
 
 
@@ -424,12 +427,10 @@ def _reject(masked: np.ndarray, reject: np.ndarray, new: np.ndarray) -> None:
     masked[new] = np.nan
 
 
-def _median(dense: np.ndarray, idx: np.ndarray) -> np.ndarray:
-    """MEDIAN_SIZE median of the float32 map on matched pixels (``idx >= 0``); the others keep
-    their values."""
-    out = cv2.medianBlur(dense, MEDIAN_SIZE)
-    np.copyto(out, dense, where=idx < 0)
-    return out
+def _median(dense: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """MEDIAN_SIZE median of the float32 map (into ``out`` if given, same shape). Unmatched
+    pixels (-1) take part like the others; the caller sets them NaN afterwards."""
+    return cv2.medianBlur(dense, MEDIAN_SIZE, dst=out)
 
 
 def _photo_inconsistent(left: np.ndarray, right: np.ndarray, disp: np.ndarray,
