@@ -602,12 +602,12 @@ def _flat_and_hidden(disp: np.ndarray, reject: np.ndarray, flat: np.ndarray | No
     if flat is not None:
         kind = np.isfinite(disp).view(np.uint8)  # a new array: 2 * flat + finite (KIND_*)
         kind += np.ascontiguousarray(flat, np.bool_).view(np.uint8) * np.uint8(2)
-        if columns:  # the same test along the columns, on transposed copies
+        if columns:  # the same test along the columns, on transposed copies (OpenCV's
+            # transpose: several times faster than numpy's copy of a transposed view)
             across = np.empty((W, H), np.bool_)
-            each_strip(pool, row_strips(W, len(strips)), _rows, np.ascontiguousarray(disp.T),
-                       np.ascontiguousarray(kind.T), None, across, tolerance, None, False,
-                       across)
-            along = np.ascontiguousarray(across.T)
+            each_strip(pool, row_strips(W, len(strips)), _rows, cv2.transpose(disp),
+                       cv2.transpose(kind), None, across, tolerance, None, False, across)
+            along = cv2.transpose(across.view(np.uint8)).view(np.bool_)
     each_strip(pool, strips, _rows, disp, kind, along, reject, tolerance, hidden, apply, out)
     return out
 
