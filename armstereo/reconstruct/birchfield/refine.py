@@ -294,11 +294,11 @@ def row_rejects(disp, kind, along, reject, tolerance, slope, reach, margin, test
                         d[i] = nan
         if not hidden:
             continue
-        lowest = nan
+        lowest = np.float32(np.inf)  # as numpy's fmin over none: nothing is hidden
         for x in range(W - 1, -1, -1):
             xr = np.float32(x) - d[x]
-            if xr >= lowest + m:  # False while lowest is NaN, and for NaN
+            if xr >= lowest + m:  # False for NaN
                 r[x] = True
                 d[x] = nan
-            if np.isnan(lowest) or xr < lowest:
+            if xr < lowest:  # NaN takes no part
                 lowest = xr
