@@ -62,6 +62,9 @@ STAGES = [
     ("stereo", "_unsupported_rows", "unsupported flat pixels"),
     ("stereo", "_column_rejects", "unsupported flat pixels"),
     ("stereo", "_hidden_by_nearer", "hidden by nearer"),
+    # both tests in one row kernel (refine.row_rejects)
+    ("stereo", "_flat_and_hidden", "unsupported flat + hidden (one kernel)"),
+    ("stereo", "_rows", "unsupported flat + hidden (one kernel)"),
     ("stereo", "left_right_mismatch", "left-right check"),
     ("stereo", "_photo_inconsistent", "photo check"),
     ("stereo", "refine_gradient", "sub-pixel: gradient"),

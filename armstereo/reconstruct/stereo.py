@@ -65,8 +65,8 @@ restores it) and why:
 - ``postprocess="median"`` (``True``): a 5x5 median of the sub-pixel map replaces the paper's
   propagation and mode filters, which the summed costs made unnecessary (``"paper"`` keeps
   them);
-- ``subpixel="fast"``: one gradient step over 5x5 in whole-image array operations, a few
-  percent of the match time, instead of the iterated same-surface refinement;
+- ``subpixel="fast"``: one gradient step over 5x5 (one small kernel and whole-image box
+  sums), a few percent of the match time, instead of the iterated same-surface refinement;
 - ``match_reward=6`` (the paper's 5): the edge image has more contrast than the intensities,
   so a match costs more and earns a little more to stay worth making (Cones 4.66 % -> 4.54 %,
   the rings' density +2 pt, cross-pair median distance on the temple 1.75 -> 1.55 mm; the
@@ -104,9 +104,11 @@ from armstereo.reconstruct.birchfield.dp_exact import max_exact_width
 from armstereo.reconstruct.birchfield.matcher import DP_EXACT, DP_PRUNED, match_image
 from armstereo.reconstruct.birchfield.postprocess import postprocess as _postprocess
 from armstereo.reconstruct.birchfield.refine import (
+    gradient_terms,
     left_right_mismatch,
     refine_gradient,
     refine_parabola,
+    row_rejects,
 )
 from armstereo.reconstruct.birchfield.vertical import match_image_vertical
 from armstereo.reconstruct.strips import each_strip, row_strips, strip_pool
@@ -390,51 +392,33 @@ def _masked_map(pool, strips, gl, gr, idx, dmin, *, fast, median, flat, columns,
     fits. Returns ``(masked, reject)``: float32 (NaN where rejected) and the bool rejections."""
     masked = np.empty(idx.shape, np.float32)
     reject = np.empty(idx.shape, np.bool_)
-    unsup = None if flat is None else np.empty(idx.shape, np.bool_)
-    rejects = each_strip(pool, strips, _first_pass, gl, gr, idx, dmin, fast, median, flat,
-                         masked, reject, unsup)
-    if flat is not None:  # the column test reads whole columns: on the whole map
-        at = np.concatenate(rejects)
-        if columns and at.size:
-            at = _column_rejects(masked, flat, FLAT_TOLERANCE, at)
-        unsup.ravel()[at] = True
-    if unsup is not None or hidden is not None:
-        each_strip(pool, strips, _second_pass, masked, reject, unsup, hidden)
+    each_strip(pool, strips, _first_pass, gl, gr, idx, dmin, fast, median, masked, reject)
+    if flat is not None or hidden is not None:
+        _flat_and_hidden(masked, reject, flat, FLAT_TOLERANCE, columns, hidden, apply=True,
+                         pool=pool, strips=strips)
     return masked, reject
 
 
-def _first_pass(first, stop, gl, gr, idx, dmin, fast, median, flat, masked, reject, unsup):
-    """Rows ``first .. stop - 1`` of :func:`_masked_map` up to the row test of the flat
-    pixels (whose rejects it returns, flat indices of the image): the windows of the
-    sub-pixel step and the median reach beyond the strip, so they run on a few rows more."""
-    H, W = idx.shape
+def _first_pass(first, stop, gl, gr, idx, dmin, fast, median, masked, reject):
+    """Rows ``first .. stop - 1`` of :func:`_masked_map` up to the test of the flat pixels:
+    the windows of the sub-pixel step and the median reach beyond the strip, so they run on
+    a few rows more."""
+    H = idx.shape[0]
     halo = (SUBPIXEL_WINDOW // 2 if fast else 0) + (MEDIAN_SIZE // 2 if median else 0)
     a, b = max(0, first - halo), min(H, stop + halo)
     part = idx[a:b]
     dense = part.astype(np.float32)  # _match has set -1 on every pixel it rejects
     if fast:
         dense += _gradient_step(gl[a:b], gr[a:b], part, dmin)
-    if median:
-        dense = _median(dense, part)
     rows, rej = masked[first:stop], reject[first:stop]
     np.less(idx[first:stop], 0, out=rej)
-    np.copyto(rows, dense[first - a:stop - a])
+    if median and (a, b) == (first, stop):  # the whole image: straight into the map
+        _median(dense, rows)
+    else:
+        if median:
+            dense = _median(dense)
+        np.copyto(rows, dense[first - a:stop - a])
     np.copyto(rows, np.float32(np.nan), where=rej)  # NaN where rejected so far
-    if flat is None:
-        return None
-    out, at = _unsupported_rows(rows, flat[first:stop], FLAT_TOLERANCE)
-    unsup[first:stop] = out
-    return at + first * W
-
-
-def _second_pass(first, stop, masked, reject, unsup, hidden):
-    """Rows ``first .. stop - 1``: NaN on the unsupported flat pixels, then on the hidden
-    (``hidden``: the occlusion margin, None = not tested)."""
-    rows, rej = masked[first:stop], reject[first:stop]
-    if unsup is not None:
-        _reject(rows, rej, unsup[first:stop])
-    if hidden is not None:
-        _reject(rows, rej, _hidden_by_nearer(rows, hidden))
 
 
 def _reject(masked: np.ndarray, reject: np.ndarray, new: np.ndarray) -> None:
@@ -443,12 +427,10 @@ def _reject(masked: np.ndarray, reject: np.ndarray, new: np.ndarray) -> None:
     masked[new] = np.nan
 
 
-def _median(dense: np.ndarray, idx: np.ndarray) -> np.ndarray:
-    """MEDIAN_SIZE median of the float32 map on matched pixels (``idx >= 0``); the others keep
-    their values."""
-    out = cv2.medianBlur(dense, MEDIAN_SIZE)
-    np.copyto(out, dense, where=idx < 0)
-    return out
+def _median(dense: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """MEDIAN_SIZE median of the float32 map (into ``out`` if given, same shape). Unmatched
+    pixels (-1) take part like the others; the caller sets them NaN afterwards."""
+    return cv2.medianBlur(dense, MEDIAN_SIZE, dst=out)
 
 
 def _photo_inconsistent(left: np.ndarray, right: np.ndarray, disp: np.ndarray,
@@ -515,36 +497,21 @@ def _gradient_step(left: np.ndarray, right: np.ndarray, idx: np.ndarray,
     Each pixel contributes at its own integer disparity ``d``: the residual ``e = L(x) -
     R(x - d)`` and the symmetric gradient ``g`` (mean of both images' central differences);
     with ``L(x) ~ R(x - d - delta)`` the window's least-squares step is ``delta = -sum(g e) /
-    sum(g^2)``, clamped to +-1 (0 where the window has no gradient). Whole-image array
-    operations, a few percent of the matching time.
+    sum(g^2)``, clamped to +-1 (0 where the window has no gradient). The per-pixel terms
+    come from one kernel (:func:`gradient_terms`: the gathers at each pixel's partner cost
+    numpy a pass each), the window sums from OpenCV.
     """
-    H, W = idx.shape
-    # g = (gl + gr) / 2 from central differences (the 1x3 Sobel kernel) scaled by 1/4: every
-    # value is a small integer times 1/4, so the arithmetic is exact in any order
-    quarter = 0.25
-    gl = cv2.Sobel(left, cv2.CV_32F, 1, 0, ksize=1, scale=quarter)
-    g = cv2.Sobel(right, cv2.CV_32F, 1, 0, ksize=1, scale=quarter)
-    # partner column minus one, xr - 1 = x - dmin - 1 - idx: usable where 0 <= xr - 1 <= W - 3
-    # (intp: what take() uses). idx read as unsigned puts the partner of -1 (no match) far
-    # outside, and an explicit conversion is cheaper than a mixed-type subtraction
-    at = np.asarray(idx, np.int32).view(np.uint32).astype(np.intp)
-    np.subtract(np.arange(-dmin - 1, W - dmin - 1, dtype=np.intp), at, out=at)
-    off = np.greater_equal(at.view(np.uintp), np.uintp(W - 2))  # one test for both ends
-    at += np.arange(1, H * W, W, dtype=np.intp)[:, None]  # flat index of the partner
-    # where off, any pixel will do (its g is zeroed): "clip" keeps the index in the image
-    g = g.ravel().take(at, mode="clip")
-    g += gl
-    g[off] = 0
-    # -e = R(x - d) - L(x), so that the window sum below is -sum(g e) (negation is exact)
-    minus_e = cv2.subtract(right.ravel().take(at, mode="clip"), left, dtype=cv2.CV_32F)
-    minus_e *= g
-    g *= g
+    # g is a small integer times 1/4 and e an integer: every term, and every window sum
+    # below, is exact in float32 whatever the order
+    g = np.empty(idx.shape, np.float32)
+    minus_e = np.empty(idx.shape, np.float32)  # -g e, so that the window sum is -sum(g e)
+    gradient_terms(left, right, np.asarray(idx, np.int32), np.int64(dmin), g, minus_e)
     win = (SUBPIXEL_WINDOW, SUBPIXEL_WINDOW)
     sgg = cv2.boxFilter(g, -1, win, dst=g, normalize=False)
     step = cv2.boxFilter(minus_e, -1, win, dst=minus_e, normalize=False)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        np.divide(step, sgg, out=step)
-    np.copyto(step, 0, where=sgg <= SUBPIXEL_MIN_GRADIENT)  # no gradient: no step
+    # no gradient, no step: where sgg is 0 (the sums are multiples of 1/16, so none lies
+    # between 0 and the threshold) every g, and so the sum of g e, is 0 too: step keeps it
+    np.divide(step, sgg, out=step, where=sgg > SUBPIXEL_MIN_GRADIENT)
     return np.clip(step, -SUBPIXEL_MAX_SHIFT, SUBPIXEL_MAX_SHIFT, out=step)
 
 
@@ -594,14 +561,10 @@ def _hidden_by_nearer(disp: np.ndarray, margin: float) -> np.ndarray:
     ``x - d(x)`` is the pixel's right-image position; it is hidden when that lies at least
     ``margin`` pixels right of the leftmost right-image position of the pixels to its right
     (``margin = 1`` tolerates the one-pixel ties of slanted surfaces). NaN takes no part
-    (and is not marked).
+    (and is not marked). The map itself is not changed.
     """
-    H, W = disp.shape
-    xr = np.arange(W, dtype=np.float32) - disp  # NaN where no disparity
-    lowest = np.fmin.accumulate(xr[:, ::-1], axis=1)[:, ::-1]  # min over x' >= x; fmin skips NaN
-    hidden = np.zeros((H, W), np.bool_)  # the last column: nothing right of it
-    with np.errstate(invalid="ignore"):  # NaN compares False
-        np.greater_equal(xr[:, :-1], lowest[:, 1:] + margin, out=hidden[:, :-1])
+    hidden = np.zeros(disp.shape, np.bool_)
+    _flat_and_hidden(np.array(disp, np.float32), hidden, None, 0.0, False, margin, apply=False)
     return hidden
 
 
@@ -613,112 +576,53 @@ def _unsupported(disp: np.ndarray, flat: np.ndarray, tolerance: float,
     and to its right on the same row both exist, differ by at most ``tolerance`` plus
     FLAT_SLOPE per pixel between them, and its disparity lies between theirs (+-
     ``tolerance``): a plain wall between two edges of the same surface, not a gap or a
-    background that the programme had to invent a disparity for. With ``columns``, a flat
-    pixel its row rejects is still kept when the same test along its column (above and below
-    it) confirms it. ``tolerance`` >= 0.
+    background that the programme had to invent a disparity for. A run of flat pixels with
+    a disparity next to a break (no disparity, or the image's edge) within two texture
+    windows needs only the anchor at its other end. With ``columns``, a flat pixel its row
+    rejects is still kept when the same test along its column (above and below it) confirms
+    it. ``tolerance`` >= 0.
     """
-    out, at = _unsupported_rows(disp, flat, tolerance)
-    if columns and at.size:  # only the row's rejects need their column
-        at = _column_rejects(disp, flat, tolerance, at)
-    out.ravel()[at] = True
+    disp = np.ascontiguousarray(disp, np.float32)
+    return _flat_and_hidden(disp, np.empty(disp.shape, np.bool_), flat, tolerance, columns,
+                            None, apply=False)
+
+
+def _flat_and_hidden(disp: np.ndarray, reject: np.ndarray, flat: np.ndarray | None,
+                     tolerance: float, columns: bool, hidden: float | None, *, apply: bool,
+                     pool=None, strips: list[tuple[int, int]] | None = None) -> np.ndarray:
+    """:func:`_unsupported` of the (H, W) float32 ``disp`` (None ``flat``: not tested), with
+    ``apply`` set to NaN in ``disp`` and True in ``reject`` there, then the pixels
+    :func:`_hidden_by_nearer` finds with the margin ``hidden`` (None: not tested) likewise
+    (in place, :func:`row_rejects`). Returns the unsupported pixels. ``strips`` of rows run
+    side by side on ``pool`` (the column test first, on as many strips of columns)."""
+    H, W = disp.shape
+    strips = strips or [(0, H)]
+    out = np.empty((H, W), np.bool_)
+    kind = along = None
+    if flat is not None:
+        kind = np.isfinite(disp).view(np.uint8)  # a new array: 2 * flat + finite (KIND_*)
+        kind += np.ascontiguousarray(flat, np.bool_).view(np.uint8) * np.uint8(2)
+        if columns:  # the same test along the columns, on transposed copies (OpenCV's
+            # transpose: several times faster than numpy's copy of a transposed view)
+            across = np.empty((W, H), np.bool_)
+            each_strip(pool, row_strips(W, len(strips)), _rows, cv2.transpose(disp),
+                       cv2.transpose(kind), None, across, tolerance, None, False, across)
+            along = cv2.transpose(across.view(np.uint8)).view(np.bool_)
+    each_strip(pool, strips, _rows, disp, kind, along, reject, tolerance, hidden, apply, out)
     return out
 
 
-def _unsupported_rows(disp: np.ndarray, flat: np.ndarray,
-                      tolerance: float) -> tuple[np.ndarray, np.ndarray]:
-    """The row test of :func:`_unsupported`: ``(out, at)``, the flat pixels without a
-    disparity and the flat indices of those with one that their row does not confirm."""
-    finite = np.isfinite(disp)
-    query = flat & finite  # the only pixels that can be kept
-    out = flat & ~finite
-    at = np.flatnonzero(query)  # intp: take() converts any other index type first
-    if at.size == 0:
-        return out, at
-    anchor = ~flat & finite
-    lo, hi, first, last = _run_bounds(disp, query, anchor, tolerance)
-    d = disp.ravel().take(at)
-    count = last - first + 1  # at lists the runs' pixels in order
-    return out, at[~((d >= np.repeat(lo, count)) & (d <= np.repeat(hi, count)))]
-
-
-def _column_rejects(disp: np.ndarray, flat: np.ndarray, tolerance: float,
-                    at: np.ndarray) -> np.ndarray:
-    """Those of the row test's rejects ``at`` (flat indices) that their column does not
-    confirm either (:func:`_unsupported`'s ``columns``)."""
-    finite = np.isfinite(disp)
-    lo, hi = _column_bounds(disp, flat & finite, ~flat & finite, tolerance, at)
-    d = disp.ravel().take(at)
-    return at[~((d >= lo) & (d <= hi))]
-
-
-def _run_bounds(disp: np.ndarray, query: np.ndarray, anchor: np.ndarray,
-                tolerance: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The row test of :func:`_unsupported`, once per run of ``query`` pixels (flat pixels
-    with a disparity) on a row: ``(lo, hi, first, last)``, a pixel of the run is confirmed
-    when its disparity lies in ``[lo, hi]`` (NaN: none is); ``first``/``last``: the run's
-    flat indices. ``anchor``: textured pixels with a disparity.
-
-    The nearest anchor-or-break left of a run's pixel is the pixel before the run, the
-    nearest right of it the pixel after it (any pixel that is not a query is one or the
-    other): a run has an anchor on both sides (their disparities must agree), on one side
-    only (enough when the other end of the run is a break within two texture windows of
-    it), or none."""
-    W = query.shape[1]
-    begins = query.copy()
-    begins[:, 1:] &= ~query[:, :-1]
-    ends = query.copy()
-    ends[:, :-1] &= ~query[:, 1:]
-    first, last = np.flatnonzero(begins), np.flatnonzero(ends)
-    left, right = first - 1, last + 1  # -1 or past the end: masked by the row tests
-    marks, flat_d = anchor.ravel(), disp.ravel()
-    has_left = (first % W != 0) & marks.take(left, mode="wrap")
-    has_right = (right % W != 0) & marks.take(right, mode="wrap")
-    lo, hi = _neighbour_bounds(has_left, flat_d.take(left, mode="wrap"), has_right,
-                               flat_d.take(right, mode="wrap"), right - left, tolerance)
-    return lo, hi, first, last
-
-
-def _column_bounds(disp: np.ndarray, query: np.ndarray, anchor: np.ndarray, tolerance: float,
-                   at: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_run_bounds` along the columns, for the pixels of flat index ``at`` only
-    (query pixels): ``(lo, hi)`` per pixel. Only the query map is transposed, to find the
-    column runs; the neighbours are read from ``disp`` and ``anchor`` where they are."""
-    H, W = disp.shape
-    columns = np.ascontiguousarray(query.T)
-    begins = columns.copy()
-    begins[:, 1:] &= ~columns[:, :-1]
-    ends = columns
-    ends[:, :-1] &= ~columns[:, 1:]
-    first, last = np.flatnonzero(begins), np.flatnonzero(ends)  # x * H + y
-    y, x = np.divmod(at, W)
-    run = np.searchsorted(first, x * H + y, side="right") - 1
-    top = first.take(run) % H - 1  # rows of the run's neighbours: -1 and H are outside
-    bottom = last.take(run) % H + 1
-    up, down = top * W + x, bottom * W + x  # out of the image at the ends: masked below
-    marks, flat_d = anchor.ravel(), disp.ravel()
-    has_up = (top >= 0) & marks.take(up, mode="wrap")
-    has_down = (bottom < H) & marks.take(down, mode="wrap")
-    return _neighbour_bounds(has_up, flat_d.take(up, mode="wrap"), has_down,
-                             flat_d.take(down, mode="wrap"), bottom - top, tolerance)
-
-
-def _neighbour_bounds(has_left: np.ndarray, d_left: np.ndarray, has_right: np.ndarray,
-                      d_right: np.ndarray, gap: np.ndarray,
-                      tolerance: float) -> tuple[np.ndarray, np.ndarray]:
-    """The test of :func:`_run_bounds` from a run's two neighbours (anchor or not, their
-    disparities, ``gap``: their distance in pixels): ``(lo, hi)``, NaN where rejected."""
-    nan = np.float32(np.nan)
-    d_left = np.where(has_left, d_left, nan)
-    d_right = np.where(has_right, d_right, nan)
-    # a run between a break and an anchor within two texture windows needs that anchor only
-    near = gap <= 2 * TEXTURE_WINDOW
-    d_left = np.where(~has_left & near, d_right, d_left)
-    d_right = np.where(~has_right & near, d_left, d_right)
-    with np.errstate(invalid="ignore"):
-        span = tolerance + FLAT_SLOPE * gap  # a slanted surface may change
-        agree = np.abs(d_left - d_right) <= span
-    lo = np.where(agree, np.fmin(d_left, d_right) - tolerance, nan)
-    return lo, np.fmax(d_left, d_right) + tolerance
+def _rows(first: int, stop: int, disp: np.ndarray, kind: np.ndarray | None,
+          along: np.ndarray | None, reject: np.ndarray, tolerance: float, hidden: float | None,
+          apply: bool, out: np.ndarray) -> None:
+    """Rows ``first .. stop - 1`` of :func:`_flat_and_hidden` (:func:`row_rejects`; None
+    arrays: not used)."""
+    no_kind = np.empty((0, 0), np.uint8)  # read only with kind
+    row_rejects(disp, no_kind if kind is None else kind, out if along is None else along, reject,
+                np.float64(tolerance), np.float64(FLAT_SLOPE), np.int64(2 * TEXTURE_WINDOW),
+                np.float64(0.0 if hidden is None else hidden), np.bool_(kind is not None),
+                np.bool_(along is not None), np.bool_(apply), np.bool_(hidden is not None),
+                np.int64(first), np.int64(stop), out)
 
 
 def _texture_strength(grey: np.ndarray) -> np.ndarray:
@@ -764,7 +668,8 @@ def _consensus_rows(first: int, stop: int, src: np.ndarray, dst: np.ndarray, siz
     ok_part = np.isfinite(part)
     step = max(1, -(-(dmax + 1) // CONSENSUS_LEVELS))  # disparities per code
     with np.errstate(invalid="ignore"):  # NaN's code is set below
-        code = np.rint((part - dmin) / step).astype(np.uint8)
+        x = part - np.float32(dmin) if dmin else part  # no pass for nothing (exact either way)
+        code = np.rint(x / np.float32(step) if step != 1 else x).astype(np.uint8)
     code += 1
     np.multiply(code, ok_part, out=code)  # NaN: 0
     disp, ok = dst[first:stop], ok_part[first - a:stop - a]
@@ -815,9 +720,11 @@ def _undecided(padded: np.ndarray, disp: np.ndarray, ok: np.ndarray, size: int, 
     r = size // 2
     kernel = np.ones((3, 3), np.uint8)
     hi, lo, mid = cv2.dilate(padded, kernel), cv2.erode(padded, kernel), cv2.medianBlur(padded, 3)
-    x = disp - np.float32(dmin)  # exact (disp >= dmin - 1); NaN stays NaN, masked by ok
-    if step != 1:
-        x /= np.float32(step)
+    x = disp  # read only: the codes' scale, exact (disp >= dmin - 1); NaN is masked by ok
+    if dmin or step != 1:
+        x = disp - np.float32(dmin)
+        if step != 1:
+            x /= np.float32(step)
     reach = max_diff / step  # codes
     # highest and lowest acceptable codes, floor(x + reach + 1) and ceil(x - reach + 1) as
     # rounding (ties to even) of half a code less and more, clamped to 0..255 (a median at
@@ -864,7 +771,7 @@ def _speckle_codes(disp: np.ndarray) -> np.ndarray:
     """The int16 1/16-pixel copy of ``disp`` the speckle filter works on (-1: NaN)."""
     fixed = disp * np.float32(16)
     np.rint(fixed, out=fixed)
-    fixed[~np.isfinite(disp)] = -1
+    np.copyto(fixed, -1, where=~np.isfinite(disp))  # cheaper than boolean indexing
     return fixed.astype(np.int16)
 
 

@@ -189,3 +189,116 @@ def refine_gradient(left, right, disp, radius, iterations, max_shift):
                     d_in = disp[r, x]
                     cur[r, x] = min(d_in + max_shift, max(d_in - max_shift, sgd[r, x] / sgg[r, x]))
     return cur
+
+
+@njit(cache=True, nogil=True)
+def gradient_terms(left, right, idx, dmin, gg, ge):
+    """Per-pixel terms of the fast sub-pixel step: ``gg = g^2`` and ``ge = -g e``.
+
+    ``left``/``right``: (H, W) uint8; ``idx``: (H, W) int32 window indices (disparity ``dmin
+    + idx``, -1 = none); ``gg``/``ge``: (H, W) float32, written. ``e = L(x) - R(xr)`` at the
+    partner ``xr = x - d``, ``g`` the mean of both images' central differences (left at
+    ``x``, 0 in the first and last column; right at ``xr``); both terms are 0 where there is
+    no match or ``xr`` is not an inner column. Every value is an integer times 1/16 (``gg``)
+    or 1/4 (``ge``), exact in float32.
+    """
+    H, W = idx.shape
+    quarter = np.float32(0.25)
+    for y in range(H):
+        lrow = left[y]
+        rrow = right[y]
+        irow = idx[y]
+        grow = gg[y]
+        erow = ge[y]
+        for x in range(W):
+            k = irow[x]
+            xr = x - dmin - k
+            if k < 0 or xr < 1 or xr > W - 2:
+                grow[x] = 0
+                erow[x] = 0
+                continue
+            diff = np.int32(rrow[xr + 1]) - np.int32(rrow[xr - 1])
+            if 0 < x < W - 1:
+                diff += np.int32(lrow[x + 1]) - np.int32(lrow[x - 1])
+            g = np.float32(diff) * quarter
+            grow[x] = g * g
+            erow[x] = np.float32(np.int32(rrow[xr]) - np.int32(lrow[x])) * g
+
+
+# kinds of pixel for :func:`row_rejects`: 2 * flat + has a disparity
+KIND_BREAK, KIND_ANCHOR, KIND_HOLE, KIND_QUERY = 0, 1, 2, 3
+
+
+@njit(cache=True, nogil=True)
+def row_rejects(disp, kind, along, reject, tolerance, slope, reach, margin, test, use_along,
+                apply, hidden, first, stop, out):
+    """Rows ``first .. stop - 1``: the flat pixels a row does not confirm, then those a
+    nearer pixel hides; one kernel for both (and for the test along the columns, run on
+    transposed copies), as each costs its own compile on the first run.
+
+    ``test``: ``out`` (bool) is set on the flat pixels whose row does not confirm their
+    disparity, and on those without one, and with ``use_along`` cleared where ``along``
+    (bool) is False. ``disp``: (H, W) float32; ``kind``: (H, W) uint8, ``2 * flat +
+    finite(disp)`` (KIND_*). A run of flat pixels with a disparity (queries) is bounded by
+    the pixels just before and after it: textured with a disparity (anchors), or else
+    breaks, as is the row's edge. With two anchors, their disparities must agree within
+    ``tolerance + slope * gap`` (float64; ``gap``: their distance); one anchor is enough
+    when the break at the other end is at most ``reach`` pixels from it. A pixel of the run
+    is confirmed when its disparity lies within ``tolerance`` (float32) of the anchors'
+    range. ``apply``: NaN in ``disp`` and True in ``reject`` where ``out`` is set.
+
+    ``hidden``: then NaN in ``disp`` and True in ``reject`` on the pixels a nearer pixel of
+    the row hides in the right view: ``x - d(x)`` at least ``margin`` pixels right of the
+    leftmost ``x' - d(x')`` of the pixels right of it (NaN takes no part). float32 as numpy
+    states it: ``float32(x) - d``, ``lowest + float32(margin)``.
+    """
+    W = disp.shape[1]
+    nan = np.float32(np.nan)
+    tol = np.float32(tolerance)
+    m = np.float32(margin)
+    for y in range(first, stop):
+        d = disp[y]
+        o = out[y]
+        r = reject[y]
+        if test:
+            k = kind[y]
+            a = along[y]
+            x = 0
+            while x < W:  # one pass: (scalar) loops of their own cost compile time
+                if k[x] != KIND_QUERY:
+                    o[x] = k[x] == KIND_HOLE  # no disparity: already NaN
+                    if o[x] and apply:
+                        r[x] = True
+                    x += 1
+                    continue
+                s = x
+                while x < W and k[x] == KIND_QUERY:
+                    x += 1
+                gap = x - s + 1
+                d_a = d[s - 1] if s > 0 and k[s - 1] == KIND_ANCHOR else nan
+                d_b = d[x] if x < W and k[x] == KIND_ANCHOR else nan
+                if gap <= reach:
+                    if np.isnan(d_a):
+                        d_a = d_b
+                    elif np.isnan(d_b):
+                        d_b = d_a
+                lo = hi = nan  # NaN: no pixel of the run is confirmed
+                if np.float64(abs(d_a - d_b)) <= tolerance + slope * np.float64(gap):
+                    lo, hi = (d_a, d_b) if d_a <= d_b else (d_b, d_a)
+                    lo -= tol
+                    hi += tol
+                for i in range(s, x):  # the run's neighbours are not queries: never changed
+                    o[i] = not (d[i] >= lo and d[i] <= hi) and (a[i] or not use_along)
+                    if o[i] and apply:
+                        r[i] = True
+                        d[i] = nan
+        if not hidden:
+            continue
+        lowest = np.float32(np.inf)  # as numpy's fmin over none: nothing is hidden
+        for x in range(W - 1, -1, -1):
+            xr = np.float32(x) - d[x]
+            if xr >= lowest + m:  # False for NaN
+                r[x] = True
+                d[x] = nan
+            if xr < lowest:  # NaN takes no part
+                lowest = xr
