@@ -358,12 +358,11 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
             whole = np.rint(disp)
             if subpixel == "gradient":
                 disp = refine_gradient(sub_l.astype(np.float32), sub_r.astype(np.float32),
-                                       whole,
-                                       subpixel_radius, SUBPIXEL_ITERATIONS, SUBPIXEL_MAX_SHIFT)
+                                       whole, subpixel_radius, SUBPIXEL_ITERATIONS,
+                                       SUBPIXEL_MAX_SHIFT)
             else:
                 disp = refine_parabola(sub_l.astype(np.float32), sub_r.astype(np.float32),
-                                       whole,
-                                       subpixel_radius)
+                                       whole, subpixel_radius)
         if consensus_size > 0:
             _replace_outliers(disp, consensus_size, min_disparity, max_disparity, speckle_range,
                               pool=pool, strips=strips)
@@ -673,12 +672,13 @@ def _consensus_rows(first: int, stop: int, src: np.ndarray, dst: np.ndarray, siz
     code += 1
     np.multiply(code, ok_part, out=code)  # NaN: 0
     disp, ok = dst[first:stop], ok_part[first - a:stop - a]
-    at = padded = None
+    # the strip's codes with the rows around it, replicated as the image's median does
+    # where the strip meets the image's edge
+    padded = cv2.copyMakeBorder(code, r - (first - a), r - (b - stop), r, r,
+                                cv2.BORDER_REPLICATE)
+    at = None
     if (CONSENSUS_BOUNDED <= size <= CONSENSUS_BOUNDED_MAX and disp.flags.c_contiguous
             and max_diff <= CONSENSUS_REACH * step):
-        # replicated as the image's median does, where the strip meets the image's edge
-        padded = cv2.copyMakeBorder(code, r - (first - a), r - (b - stop), r, r,
-                                    cv2.BORDER_REPLICATE)
         at = np.flatnonzero(_undecided(padded, disp, ok, size, step, dmin, max_diff))
         if at.size > CONSENSUS_SHARE * disp.size:
             at = None  # the whole-image median is cheaper
@@ -686,9 +686,6 @@ def _consensus_rows(first: int, stop: int, src: np.ndarray, dst: np.ndarray, siz
         if a == first and b == stop:  # the whole image
             med = cv2.medianBlur(code, size)
         else:
-            if padded is None:
-                padded = cv2.copyMakeBorder(code, r - (first - a), r - (b - stop), r, r,
-                                            cv2.BORDER_REPLICATE)
             med = cv2.medianBlur(padded, size)[r:r + stop - first, r:r + disp.shape[1]]
         medd = (med.astype(np.float32) - 1) * np.float32(step) + np.float32(dmin)
         with np.errstate(invalid="ignore"):
@@ -879,7 +876,8 @@ def _reject_invalid_partners(disp: np.ndarray, rmask: np.ndarray,
     runs = _single_runs(rmask)
     with np.errstate(invalid="ignore"):
         if runs is not None:  # a rectification's mask: one run [a, b) of valid pixels per row
-            # float64 bounds: comparing with the int columns would convert every pixel's
+            # float64 bounds: compared with int columns, numpy would convert every pixel's
+            # float to float64 on the way; converting the H bounds once is cheaper
             a, b = (r.astype(np.float64) for r in runs)
             ok = xr >= a
             ok &= xr < b

@@ -12,29 +12,6 @@ from armstereo.reconstruct.birchfield.jit import njit
 
 
 @njit(cache=True)
-def occluded_by_nearer(disp, margin):
-    """Left pixels hidden in the right view by a nearer pixel of the same map.
-
-    Scanning each row from the right, pixel ``x`` is occluded when ``x - d(x)`` lies at least
-    ``margin`` pixels right of the leftmost right-image position of the pixels to its right.
-    ``margin = 1`` tolerates the one-pixel ties a slanted surface gives in an integer map.
-    """
-    H, W = disp.shape
-    occ = np.zeros((H, W), np.bool_)
-    for r in range(H):
-        lowest = W + 1 << 20
-        for x in range(W - 1, -1, -1):
-            d = disp[r, x]
-            if d < 0:
-                continue
-            xr = x - d
-            if xr >= lowest + margin:
-                occ[r, x] = True
-            lowest = min(lowest, xr)
-    return occ
-
-
-@njit(cache=True)
 def left_right_mismatch(disp_l, disp_r, dmin, tolerance):
     """Left pixels whose match's right-reference disparity differs by more than ``tolerance``.
 
