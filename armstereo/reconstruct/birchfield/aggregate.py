@@ -31,8 +31,6 @@ float32's exact integers: the programme's equality-based backtrack needs exact a
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
-
 import cv2
 import numpy as np
 
@@ -48,6 +46,7 @@ from armstereo.reconstruct.birchfield.lanes import (
     lane_backtrack,
     lane_forward,
 )
+from armstereo.reconstruct.strips import each_strip, strip_pool
 
 
 def cost_divisor(width: int, window_pixels: int, occ: int) -> int:
@@ -84,7 +83,8 @@ def match_image_aggregated(left: np.ndarray, right: np.ndarray, lmask: np.ndarra
     one-pixel-jump penalty (-1: none); ``textured``: (H, W) bool, left pixels that earn the
     reward (None: all). Returns ``disp`` (H, W) int32 window indices (-1 = none) and ``state``
     (H, W) uint8 as :func:`armstereo.reconstruct.birchfield.matcher.match_rows`. Blocks of
-    :data:`.lanes.LANES` rows run on ``threads`` threads, each on a contiguous run of blocks.
+    :data:`.lanes.LANES` rows run on ``threads`` threads, each thread setting up and matching
+    a contiguous run of blocks (:func:`block_strips`).
     """
     H, W = left.shape
     npix = (2 * rx + 1) * (2 * ry + 1)
@@ -92,35 +92,52 @@ def match_image_aggregated(left: np.ndarray, right: np.ndarray, lmask: np.ndarra
     out = dict(disp=np.empty((H, W), np.int32), state=np.empty((H, W), np.uint8))
     if textured is None:
         textured = np.ones((H, W), np.bool_)
-    starts = range(0, H, LANES)
-    bounds = np.empty((6, W, starts[-1] + _vector_rows(ry)), np.float32)
-    image_bounds(*(_rows_transposed(img, mask, ry, bounds.shape[2])
-                   for img, mask in ((left, lmask), (right, rmask))), bounds)
-    pens = _scaled_penalties(occ, rew, slant, npix, q)
-    setup = block_setup(left, right, lmask, rmask, np.asarray(textured, np.bool_), dmin, nd,
-                        pens, out["disp"], out["state"])
-    params = (dmin, nd, rx, ry, q, pens)
-    n = max(1, min(len(starts), threads))
-    cuts = np.linspace(0, len(starts), n + 1).round().astype(int)
-    jobs = [range(cuts[i], cuts[i + 1]) for i in range(n)]
-    if n == 1:
-        _match_blocks(jobs[0], bounds, setup, params, out)
-    else:
-        with ThreadPoolExecutor(n) as pool:
-            for job in [pool.submit(_match_blocks, blocks, bounds, setup, params, out)
-                        for blocks in jobs]:
-                job.result()
+    images = (left, right, lmask, rmask, np.asarray(textured, np.bool_))
+    params = (dmin, nd, rx, ry, q, _scaled_penalties(occ, rew, slant, npix, q))
+    strips = block_strips(H, threads)
+    with strip_pool(strips) as pool:
+        each_strip(pool, strips, _match_strip, images, params, out)
     return out
 
 
-def _rows_transposed(grey: np.ndarray, mask: np.ndarray, ry: int, nj: int) -> np.ndarray:
-    """(W, nj) uint8: the (H, W) image filled outside ``mask`` (:func:`fill_outside`),
-    its row ``j - ry`` (clamped to the image) as column ``j``, as :func:`.lanes.image_bounds`
-    reads it. The clamped rows by one border copy (no gather, no fill when every pixel is
-    valid)."""
+def block_strips(height: int, threads: int) -> list[tuple[int, int]]:
+    """Up to ``threads`` strips ``(first, stop)`` of rows, each a run of whole blocks of
+    :data:`.lanes.LANES` rows (the last one cut at ``height``), of about equal length."""
+    nb = -(-height // LANES)
+    n = max(1, min(nb, threads))
+    cuts = [round(i * nb / n) * LANES for i in range(n + 1)]
+    return [(a, min(b, height)) for a, b in zip(cuts[:-1], cuts[1:], strict=True)]
+
+
+def _match_strip(first: int, stop: int, images: tuple, params: tuple, out: dict) -> None:
+    """Set up and match rows ``first .. stop - 1`` (whole blocks): every step reads the
+    images' rows it needs (the window's ``ry`` more each side) and writes only these rows of
+    ``out``, so strips can run side by side and give the maps of one pass over the image."""
+    left, right, lmask, rmask, textured = images
+    dmin, nd, rx, ry, q, pens = params
+    rows = slice(first, stop)
+    mine = dict(disp=out["disp"][rows], state=out["state"][rows])  # views: block row 0 = first
+    nj = (-(-(stop - first) // LANES) - 1) * LANES + _vector_rows(ry)
+    bounds = np.empty((6, left.shape[1], nj), np.float32)
+    image_bounds(*(_rows_transposed(img, mask, ry, first, stop, nj)
+                   for img, mask in ((left, lmask), (right, rmask))), bounds)
+    setup = block_setup(left[rows], right[rows], lmask[rows], rmask[rows], textured[rows], dmin,
+                        nd, pens, mine["disp"], mine["state"])
+    _match_blocks(range(len(setup[4])), bounds, setup, params, mine)
+
+
+def _rows_transposed(grey: np.ndarray, mask: np.ndarray, ry: int, first: int, stop: int,
+                     nj: int) -> np.ndarray:
+    """(W, nj) uint8: the (H, W) image filled outside ``mask`` (:func:`fill_outside`), its
+    row ``first + j - ry`` (clamped to the image) as column ``j``, as :func:`.lanes.image_bounds`
+    reads it for the rows ``first .. stop - 1``. The clamped rows by one border copy (no
+    gather, no fill when every pixel is valid)."""
     H = grey.shape[0]
-    filled = np.ascontiguousarray(grey) if mask.all() else fill_outside(grey, mask)
-    return cv2.transpose(cv2.copyMakeBorder(filled, ry, nj - H - ry, 0, 0,
+    a, b = max(0, first - ry), min(H, stop + ry)  # the image rows the window reaches
+    part, valid = grey[a:b], mask[a:b]
+    filled = np.ascontiguousarray(part) if valid.all() else fill_outside(part, valid)
+    top = ry - (first - a)  # rows clamped to the image's first row
+    return cv2.transpose(cv2.copyMakeBorder(filled, top, nj - (b - a) - top, 0, 0,
                                             cv2.BORDER_REPLICATE))
 
 
