@@ -111,6 +111,7 @@ from armstereo.reconstruct.birchfield.refine import (
     row_rejects,
 )
 from armstereo.reconstruct.birchfield.vertical import match_image_vertical
+from armstereo.reconstruct.consensus import replace_outliers
 from armstereo.reconstruct.strips import each_strip, row_strips, strip_pool
 
 log = logging.getLogger(__name__)
@@ -142,15 +143,6 @@ SPECKLE_RANGE = 2.0  # pixels of disparity
 # the penalties are scaled (2 and 4 measured: bench/results/stereo_consistency.md)
 SMOOTHING_SCALE = 3
 CONSENSUS_SIZE = 9  # pixels: side of the consensus median's square
-CONSENSUS_LEVELS = 254  # distinct disparity codes of the consensus median (uint8, 0 = NaN)
-# consensus squares from this side on: the median only where it can change the answer (below,
-# OpenCV's sorting network is cheaper), up to the largest side checked against the whole-image
-# median (the per-block counters are uint8: at most 255 blocks)
-CONSENSUS_BOUNDED = 7
-CONSENSUS_BOUNDED_MAX = 13
-CONSENSUS_SHARE = 0.1  # more undecided pixels than this share: the whole-image median
-CONSENSUS_MARGIN = 1e-3  # codes: narrows the acceptable codes beyond float32 rounding
-CONSENSUS_REACH = 512  # codes: max_diff / step at most this for float32 bounds below 1024
 MEDIAN_SIZE = 5
 OCCLUSION_MARGIN = 5.0  # pixels: see _hidden_by_nearer (1, 2, 3, 5, 8 measured)
 FLAT_TOLERANCE = 1.0  # pixels: see _unsupported
@@ -217,7 +209,7 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
       along the column); False = rows only.
     - ``consensus_size``: an answer differing by more than ``speckle_range`` from the median
       answer over this square around it is replaced by that median
-      (:func:`_replace_outliers`); 0 = off. Odd, >= 3.
+      (:func:`.consensus.replace_outliers`); 0 = off. Odd, >= 3.
     - ``column_smoothing``: ``(p1, p2)`` grey levels: the programme's node costs are first
       smoothed along each column, down and up, as semi-global matching does along one line
       (a one-disparity change between rows costs ``p1``, a larger one ``p2``), and each row's
@@ -364,7 +356,7 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
                 disp = refine_parabola(sub_l.astype(np.float32), sub_r.astype(np.float32),
                                        whole, subpixel_radius)
         if consensus_size > 0:
-            _replace_outliers(disp, consensus_size, min_disparity, max_disparity, speckle_range,
+            replace_outliers(disp, consensus_size, min_disparity, max_disparity, speckle_range,
                               pool=pool, strips=strips)
         speckles = None
         if speckle_size > 0 and pool is None:
@@ -631,129 +623,6 @@ def _texture_strength(grey: np.ndarray) -> np.ndarray:
     gx = cv2.Sobel(grey, cv2.CV_32F, 1, 0, ksize=3, scale=1 / 8)
     np.abs(gx, out=gx)
     return cv2.blur(gx, (TEXTURE_WINDOW, TEXTURE_WINDOW), dst=gx)
-
-
-def _replace_outliers(disp: np.ndarray, size: int, dmin: int, dmax: int,
-                      max_diff: float = SPECKLE_RANGE, *, pool=None,
-                      strips: list[tuple[int, int]] | None = None) -> None:
-    """Answered pixels more than ``max_diff`` from the median answer of the ``size`` square
-    around them take that median (in place): a streak a few rows high, or a blob, that
-    disagrees with the surface around it is replaced by what the surface says.
-
-    The median is that of a uint8 copy (OpenCV's any-size median, replicated border): whole
-    disparities above ``dmin``, or pairs of them where the window holds more than
-    CONSENSUS_LEVELS values; NaN is code 0 and a window whose median is NaN changes nothing.
-    From CONSENSUS_BOUNDED on, the median is computed only at the pixels where bounds from
-    3x3 blocks (:func:`_undecided`) allow it to change the answer: the same result, without
-    the whole-image median of a large square (its cost grows with the side). ``strips`` of
-    rows (:mod:`.strips`) run side by side on ``pool``, with the same result.
-    """
-    H = disp.shape[0]
-    if strips is None or len(strips) == 1:
-        _consensus_rows(0, H, disp, disp, size, dmin, dmax, max_diff)
-        return
-    src = disp.copy()  # the strips read the rows around theirs as they were
-    each_strip(pool, strips, _consensus_rows, src, disp, size, dmin, dmax, max_diff)
-
-
-def _consensus_rows(first: int, stop: int, src: np.ndarray, dst: np.ndarray, size: int,
-                    dmin: int, dmax: int, max_diff: float) -> None:
-    """Rows ``first .. stop - 1`` of :func:`_replace_outliers`: medians of ``src``, written
-    into ``dst`` (which may be ``src`` when the rows are the whole image)."""
-    H = src.shape[0]
-    r = size // 2
-    a, b = max(0, first - r), min(H, stop + r)  # the rows the squares reach
-    part = src[a:b]
-    ok_part = np.isfinite(part)
-    step = max(1, -(-(dmax + 1) // CONSENSUS_LEVELS))  # disparities per code
-    with np.errstate(invalid="ignore"):  # NaN's code is set below
-        x = part - np.float32(dmin) if dmin else part  # no pass for nothing (exact either way)
-        code = np.rint(x / np.float32(step) if step != 1 else x).astype(np.uint8)
-    code += 1
-    np.multiply(code, ok_part, out=code)  # NaN: 0
-    disp, ok = dst[first:stop], ok_part[first - a:stop - a]
-    # the strip's codes with the rows around it, replicated as the image's median does
-    # where the strip meets the image's edge
-    padded = cv2.copyMakeBorder(code, r - (first - a), r - (b - stop), r, r,
-                                cv2.BORDER_REPLICATE)
-    at = None
-    if (CONSENSUS_BOUNDED <= size <= CONSENSUS_BOUNDED_MAX and disp.flags.c_contiguous
-            and max_diff <= CONSENSUS_REACH * step):
-        at = np.flatnonzero(_undecided(padded, disp, ok, size, step, dmin, max_diff))
-        if at.size > CONSENSUS_SHARE * disp.size:
-            at = None  # the whole-image median is cheaper
-    if at is None:
-        if a == first and b == stop:  # the whole image
-            med = cv2.medianBlur(code, size)
-        else:
-            med = cv2.medianBlur(padded, size)[r:r + stop - first, r:r + disp.shape[1]]
-        medd = (med.astype(np.float32) - 1) * np.float32(step) + np.float32(dmin)
-        with np.errstate(invalid="ignore"):
-            outlier = ok & (med > 0) & (np.abs(disp - medd) > max_diff)
-        disp[outlier] = medd[outlier]
-        return
-    med = _window_median(padded, at, size, disp.shape[1])
-    medd = (med.astype(np.float32) - 1) * np.float32(step) + np.float32(dmin)
-    flat = disp.ravel()  # a view: disp is C-contiguous
-    outlier = (med > 0) & (np.abs(flat.take(at) - medd) > max_diff)
-    flat[at[outlier]] = medd[outlier]
-
-
-def _undecided(padded: np.ndarray, disp: np.ndarray, ok: np.ndarray, size: int, step: int,
-               dmin: int, max_diff: float) -> np.ndarray:
-    """(H, W) bool: answered pixels whose ``size`` median (of the uint8 codes ``padded``,
-    replicated by ``size // 2`` on each side) might lie more than ``max_diff`` from their
-    disparity; the median cannot change any other pixel.
-
-    The median exceeds the highest acceptable code ``b`` only if half the window's codes
-    do. The window is covered by 3x3 blocks; a block holds at most 9 codes above ``b`` when
-    its median is above it, at most 4 when only its maximum is, else none: when these
-    counts stay below half the window, the median is at most ``b``. Likewise below the
-    lowest acceptable code ``a`` with the blocks' minima (NaN, code 0, counts as below).
-    ``a`` and ``b`` are narrowed by CONSENSUS_MARGIN codes, more than float32 rounding
-    here and in the test itself, so that a pixel passed over can never change.
-    """
-    H, W = disp.shape
-    r = size // 2
-    kernel = np.ones((3, 3), np.uint8)
-    hi, lo, mid = cv2.dilate(padded, kernel), cv2.erode(padded, kernel), cv2.medianBlur(padded, 3)
-    x = disp  # read only: the codes' scale, exact (disp >= dmin - 1); NaN is masked by ok
-    if dmin or step != 1:
-        x = disp - np.float32(dmin)
-        if step != 1:
-            x /= np.float32(step)
-    reach = max_diff / step  # codes
-    # highest and lowest acceptable codes, floor(x + reach + 1) and ceil(x - reach + 1) as
-    # rounding (ties to even) of half a code less and more, clamped to 0..255 (a median at
-    # or below 0 changes nothing): uint8 saturation
-    b = cv2.add(x, reach + 0.5 - CONSENSUS_MARGIN, dtype=cv2.CV_8U)
-    a = cv2.add(x, 1.5 - reach + CONSENSUS_MARGIN, dtype=cv2.CV_8U)
-    counts = [np.zeros((H, W), np.uint8) for _ in range(4)]  # max > b, mid > b, min < a, mid < a
-    tests = ((hi, b, cv2.CMP_GT), (mid, b, cv2.CMP_GT), (lo, a, cv2.CMP_LT), (mid, a, cv2.CMP_LT))
-    centres = list(range(-(r - 1), r - 1, 3)) + [r - 1]  # 3x3 blocks covering the window
-    for dy in centres:
-        for dx in centres:
-            rows, cols = slice(r + dy, r + dy + H), slice(r + dx, r + dx + W)
-            for count, (image, bound, cmp) in zip(counts, tests, strict=True):
-                # 255 where true: subtracting it adds one (uint8 wraps)
-                np.subtract(count, cv2.compare(image[rows, cols], bound, cmp), out=count)
-    half = size * size // 2 + 1  # codes beyond a bound that move the median past it
-    high = cv2.addWeighted(counts[0], 4, counts[1], 5, 0, dtype=cv2.CV_16U) >= half
-    low = cv2.addWeighted(counts[2], 4, counts[3], 5, 0, dtype=cv2.CV_16U) >= half
-    high |= low
-    high &= ok
-    return high
-
-
-def _window_median(padded: np.ndarray, at: np.ndarray, size: int, width: int) -> np.ndarray:
-    """Medians of the ``size`` squares around the pixels of flat index ``at`` (of an image
-    ``width`` wide; ``padded``: its uint8 codes replicated by ``size // 2`` on each side)."""
-    y, x = np.divmod(at, width)
-    windows = np.lib.stride_tricks.sliding_window_view(padded, (size, size))[y, x]
-    middle = size * size // 2
-    # int16: numpy's partition has a vectorised path for it, none for uint8
-    windows = windows.reshape(len(at), size * size).astype(np.int16)
-    return np.partition(windows, middle, axis=1)[:, middle]
 
 
 def _remove_speckles(disp: np.ndarray, size: int, max_diff: float) -> None:

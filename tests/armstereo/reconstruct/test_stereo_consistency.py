@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from armstereo.errors import StereoError
-from armstereo.reconstruct import stereo
+from armstereo.reconstruct import consensus, stereo
 from armstereo.reconstruct.stereo import birchfield
 from tests.support.images import texture
 
@@ -55,7 +55,7 @@ def test_consensus_replaces_a_streak_by_its_surface():
     disp[14:16, 5:35] = 20.0  # a two-row streak at a wrong disparity
     disp[3, 3] = 11.5  # within the speckle range: left alone
     disp[25:28, 25:28] = np.nan
-    stereo._replace_outliers(disp, 9, 0, 31)
+    consensus.replace_outliers(disp, 9, 0, 31, 2.0)
     assert np.all(disp[14:16, 5:35] == 10.0)  # the window's median, whole disparities
     assert disp[3, 3] == np.float32(11.5) and disp[0, 0] == np.float32(10.25)
     assert np.isnan(disp[25:28, 25:28]).all()  # no answer is invented
@@ -64,14 +64,14 @@ def test_consensus_replaces_a_streak_by_its_surface():
 def test_consensus_leaves_pixels_whose_window_is_mostly_unanswered():
     disp = np.full((20, 20), np.nan, np.float32)
     disp[10, 10] = 7.0  # the window's median is "no answer"
-    stereo._replace_outliers(disp, 9, 0, 31)
+    consensus.replace_outliers(disp, 9, 0, 31, 2.0)
     assert disp[10, 10] == 7.0
 
 
 def test_consensus_codes_wide_windows_in_pairs_of_disparities():
     disp = np.full((30, 30), 300.0, np.float32)
     disp[10:12, :] = 100.0
-    stereo._replace_outliers(disp, 9, 40, 351)  # 352 disparities: two per code
+    consensus.replace_outliers(disp, 9, 40, 351, 2.0)  # 352 disparities: two per code
     assert np.all(np.abs(disp[10:12] - 300.0) <= 1.0)
     assert np.all(disp[:5] == 300.0)
 

@@ -11,7 +11,7 @@ import cv2
 import numpy as np
 import pytest
 
-from armstereo.reconstruct import stereo
+from armstereo.reconstruct import consensus, stereo
 from tests.support.images import box_pair
 
 SEED = 14
@@ -21,7 +21,7 @@ def consensus_reference(disp, size, dmin, dmax, max_diff):
     """The consensus rule by its definition: the whole-image uint8 median of the codes."""
     out = disp.copy()
     ok = np.isfinite(disp)
-    step = max(1, -(-(dmax + 1) // stereo.CONSENSUS_LEVELS))
+    step = max(1, -(-(dmax + 1) // consensus.CONSENSUS_LEVELS))
     code = np.zeros(disp.shape, np.uint8)
     code[ok] = np.rint((disp[ok] - dmin) / step).astype(np.uint8) + 1
     med = cv2.medianBlur(code, size)
@@ -59,7 +59,7 @@ def test_consensus_equals_the_whole_image_median(size, dmax):
         expected = consensus_reference(disp, size, dmin, dmax, max_diff)
         assert not np.array_equal(expected, disp, equal_nan=True)  # some pixels change
         got = disp.copy()
-        stereo._replace_outliers(got, size, dmin, dmax, max_diff)
+        consensus.replace_outliers(got, size, dmin, dmax, max_diff)
         assert np.array_equal(got.view(np.uint32), expected.view(np.uint32))
 
 
@@ -69,8 +69,35 @@ def test_consensus_on_noise_takes_the_whole_image_path_and_agrees():
     disp = rng.uniform(0, 40, (40, 50)).astype(np.float32)
     disp[rng.random(disp.shape) < 0.3] = np.nan
     expected = consensus_reference(disp, 9, 0, 40, 2.0)
-    stereo._replace_outliers(disp, 9, 0, 40, 2.0)
+    consensus.replace_outliers(disp, 9, 0, 40, 2.0)
     assert np.array_equal(disp.view(np.uint32), expected.view(np.uint32))
+
+
+@pytest.mark.parametrize("size", [7, 9, 11, 13])
+def test_undecided_kernel_counts_blocks_as_defined(size):
+    """The kernel's per-pixel counts against the definition, block by block in numpy: a
+    block whose median is beyond a bound counts 9 codes, one with only its extreme beyond 4."""
+    rng = np.random.default_rng(SEED + size)
+    r = size // 2
+    H, W = 23, 31
+    hi, mid, lo = (blocky(rng, (H + 2 * r, W + 2 * r), 40, 0).astype(np.uint8) for _ in "abc")
+    above = rng.integers(0, 40, (H, W)).astype(np.uint8)
+    below = rng.integers(0, 40, (H, W)).astype(np.uint8)
+    ok = rng.random((H, W)) < 0.9
+    centres = list(range(-(r - 1), r - 1, 3)) + [r - 1]
+    n_hi, n_lo = np.zeros((H, W), int), np.zeros((H, W), int)
+    for dy in centres:
+        for dx in centres:
+            at = (slice(r + dy, r + dy + H), slice(r + dx, r + dx + W))
+            n_hi += 4 * (hi[at] > above) + 5 * (mid[at] > above)
+            n_lo += 4 * (lo[at] < below) + 5 * (mid[at] < below)
+    half = size * size // 2 + 1
+    expected = ok & ((n_hi >= half) | (n_lo >= half))
+    got = np.empty((H, W), np.bool_)
+    consensus.undecided_pixels(hi, mid, lo, above, below, ok, np.int64(r),
+                               np.array(centres, np.int64), np.int64(half), got)
+    assert 0 < expected.sum() < expected.size  # both answers occur
+    np.testing.assert_array_equal(got, expected)
 
 
 def blocky(rng, shape, values, density):
@@ -107,11 +134,11 @@ def test_consensus_on_strips_equals_the_whole_image(size):
     noisy = rng.uniform(0, 33, (30, 90)).astype(np.float32)  # undecided: the strip's median
     disp[60:90] = noisy
     expected = disp.copy()
-    stereo._replace_outliers(expected, size, 2, 31)
+    consensus.replace_outliers(expected, size, 2, 31, 2.0)
     for strips in ([(0, 1), (1, 50), (50, 120)], [(0, 40), (40, 80), (80, 120)]):
         got = disp.copy()
         with ThreadPoolExecutor(2) as pool:
-            stereo._replace_outliers(got, size, 2, 31, pool=pool, strips=strips)
+            consensus.replace_outliers(got, size, 2, 31, 2.0, pool=pool, strips=strips)
         assert np.array_equal(got.view(np.uint32), expected.view(np.uint32))
 
 
