@@ -1,10 +1,11 @@
 """Benchmark: where the time of ``birchfield()`` goes, stage by stage, beside StereoSGBM.
 
-Each stage is one named function of :mod:`armstereo.reconstruct.stereo` (or of
-:mod:`armstereo.reconstruct.birchfield.aggregate`): the worker wraps every one it finds with a
-timer and reports its *own* time (without the stages it calls), the median over the runs;
-"rest of birchfield()" is what runs in ``birchfield()``'s own body. A stage a variant does not
-have (renamed, or inline there) shows as "-" and its time is in the row of its caller. SGBM
+Each stage is one named function of :mod:`armstereo.reconstruct.stereo` (or of the modules
+it calls: ``birchfield.aggregate``, ``consensus``, ``speckles``): the worker wraps every one
+it finds with a timer and reports its *own* time (without the stages it calls), the median
+over the runs; "rest of birchfield()" is what runs in ``birchfield()``'s own body. A stage a
+variant does not have (renamed, or inline there) shows as "-" and its time is in the row of
+its caller. SGBM
 runs interleaved with ``birchfield()`` in the same process, one thread each
 (``numba.set_num_threads``, ``cv2.setNumThreads``), on the pairs of bench/stereo.py (the four
 Middlebury pairs and its two synthetic scenes).
@@ -25,6 +26,7 @@ Run: ``.venv/bin/python bench/stereo_stages.py [--repeats 9] [--rounds 2] [--mas
 from __future__ import annotations
 
 import argparse
+import importlib
 import importlib.util
 import json
 import os
@@ -69,11 +71,14 @@ STAGES = [
     ("stereo", "_photo_inconsistent", "photo check"),
     ("stereo", "refine_gradient", "sub-pixel: gradient"),
     ("stereo", "refine_parabola", "sub-pixel: parabola"),
-    ("stereo", "_replace_outliers", "consensus median"),
+    ("stereo", "_replace_outliers", "consensus median"),  # before consensus.py
     ("stereo", "_consensus_rows", "consensus median"),
+    ("consensus", "replace_outliers", "consensus median"),
+    ("consensus", "_consensus_rows", "consensus median"),
     ("stereo", "_reject", "reject (NaN bookkeeping)"),
-    ("stereo", "_remove_speckles", "speckles"),
+    ("stereo", "_remove_speckles", "speckles"),  # before speckles.py
     ("stereo", "_speckle_codes", "speckles"),
+    ("speckles", "remove_speckles", "speckles"),
     ("stereo", "_clip_to_window", "clip to window"),
     ("stereo", "_reject_invalid_partners", "invalid partners"),
     ("stereo", "_masked_map", "rest of birchfield()"),  # the strips' bookkeeping
@@ -149,9 +154,12 @@ def worker(repeats: int, options: dict, only: list[str] | None, masked: bool) ->
     cv2.setNumThreads(1)
     timer = StageTimer()
     modules = {"stereo": stereo, "aggregate": aggregate}
+    for part in ("consensus", "speckles"):  # split out of stereo.py: older trees lack them
+        if importlib.util.find_spec(f"armstereo.reconstruct.{part}") is not None:
+            modules[part] = importlib.import_module(f"armstereo.reconstruct.{part}")
     present = []
     for mod, name, label in STAGES:
-        func = getattr(modules[mod], name, None)
+        func = getattr(modules.get(mod), name, None)
         if func is None:
             continue
         for module in modules.values():  # and where it was imported by name

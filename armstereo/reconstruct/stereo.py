@@ -112,6 +112,7 @@ from armstereo.reconstruct.birchfield.refine import (
 )
 from armstereo.reconstruct.birchfield.vertical import match_image_vertical
 from armstereo.reconstruct.consensus import replace_outliers
+from armstereo.reconstruct.speckles import remove_speckles
 from armstereo.reconstruct.strips import each_strip, row_strips, strip_pool
 
 log = logging.getLogger(__name__)
@@ -357,21 +358,13 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
                                        whole, subpixel_radius)
         if consensus_size > 0:
             replace_outliers(disp, consensus_size, min_disparity, max_disparity, speckle_range,
-                              pool=pool, strips=strips)
-        speckles = None
-        if speckle_size > 0 and pool is None:
-            _remove_speckles(disp, speckle_size, speckle_range)
-        elif speckle_size > 0:  # the two steps below do not change which regions are small
-            fixed = _speckle_codes(disp)
-            speckles = pool.submit(cv2.filterSpeckles, fixed, -1, int(speckle_size),
-                                   _speckle_diff(speckle_range))
+                             pool=pool, strips=strips)
+        if speckle_size > 0:
+            remove_speckles(disp, speckle_size, speckle_range, pool=pool, threads=len(strips))
         disp = _clip_to_window(disp, min_disparity, max_disparity)
         # The median and the sub-pixel steps move disparities after matching: one may now point
         # into the right image's fill or past its edge, which the programme itself never matches.
         _reject_invalid_partners(disp, rmask, min_disparity + max_disparity)
-        if speckles is not None:
-            speckles.result()
-            disp[fixed < 0] = np.nan
     return disp
 
 
@@ -623,27 +616,6 @@ def _texture_strength(grey: np.ndarray) -> np.ndarray:
     gx = cv2.Sobel(grey, cv2.CV_32F, 1, 0, ksize=3, scale=1 / 8)
     np.abs(gx, out=gx)
     return cv2.blur(gx, (TEXTURE_WINDOW, TEXTURE_WINDOW), dst=gx)
-
-
-def _remove_speckles(disp: np.ndarray, size: int, max_diff: float) -> None:
-    """NaN on small regions of similar disparity (in place; OpenCV's filterSpeckles on a
-    1/16-pixel int16 copy, :func:`_speckle_codes`)."""
-    fixed = _speckle_codes(disp)
-    cv2.filterSpeckles(fixed, -1, int(size), _speckle_diff(max_diff))
-    disp[fixed < 0] = np.nan
-
-
-def _speckle_codes(disp: np.ndarray) -> np.ndarray:
-    """The int16 1/16-pixel copy of ``disp`` the speckle filter works on (-1: NaN)."""
-    fixed = disp * np.float32(16)
-    np.rint(fixed, out=fixed)
-    np.copyto(fixed, -1, where=~np.isfinite(disp))  # cheaper than boolean indexing
-    return fixed.astype(np.int16)
-
-
-def _speckle_diff(max_diff: float) -> int:
-    """``max_diff`` pixels of disparity in :func:`_speckle_codes`' 1/16-pixel units."""
-    return int(round(max_diff * 16))
 
 
 def _clip_to_window(disp: np.ndarray, min_disparity: int, max_disparity: int) -> np.ndarray:

@@ -154,15 +154,6 @@ def test_a_flat_wall_between_agreeing_edges_keeps_its_disparity():
     np.testing.assert_array_equal(out, [0, 0, 0, 0, 1, 1, 1, 0, 0, 1])
 
 
-def test_small_islands_of_disparity_are_removed():
-    disp = np.full((40, 40), 10.0, np.float32)
-    disp[10:14, 10:14] = 25.0  # 16 pixels far from their surroundings
-    disp[30:, 30:] = 11.5  # a large region within the speckle range of its neighbours
-    stereo._remove_speckles(disp, 100, 2.0)
-    assert np.isnan(disp[10:14, 10:14]).all()
-    assert np.isfinite(disp).sum() == 40 * 40 - 16
-
-
 def test_hidden_by_nearer_marks_the_strip_a_nearer_pixel_covers():
     row = np.array([[3, 3, 3, 3, 3, 6, 6, 6]], np.float32)  # x - d: -3 .. 1, then -1, 0, 1
     hidden = stereo._hidden_by_nearer(row, 1.0)[0]
