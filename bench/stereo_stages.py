@@ -5,8 +5,7 @@ it calls: ``birchfield.aggregate``, ``consensus``, ``speckles``): the worker wra
 it finds with a timer and reports its *own* time (without the stages it calls), the median
 over the runs; "rest of birchfield()" is what runs in ``birchfield()``'s own body. A stage a
 variant does not have (renamed, or inline there) shows as "-" and its time is in the row of
-its caller. SGBM
-runs interleaved with ``birchfield()`` in the same process, one thread each
+its caller. SGBM runs interleaved with ``birchfield()`` in the same process, one thread each
 (``numba.set_num_threads``, ``cv2.setNumThreads``), on the pairs of bench/stereo.py (the four
 Middlebury pairs and its two synthetic scenes).
 
