@@ -129,6 +129,7 @@ COST_WINDOW = (1, 3)  # (width, height) of the summed-cost window
 SLANT_PENALTY = 20.0  # grey levels, for a one-pixel disparity step
 TEXTURE_THRESHOLD = 1.0  # grey levels per pixel, mean |horizontal gradient| over the window
 TEXTURE_WINDOW = 5
+INPUT_HALO = 1 + TEXTURE_WINDOW // 2  # rows the texture map's Sobel and box filter reach
 REWARD_TEXTURE = 0.5  # grey levels per pixel: matching flatter pixels earns no reward
 MATCH_REWARD = 6.0  # grey levels (the paper's 5 on intensities; 5.5, 6.5 measured)
 PREFILTER_MODES = ("none", "highpass", "edges")
@@ -294,29 +295,17 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
     if color != "gray" or search != "exact":  # only the paper's single-pixel kernels
         rx, ry, slant_penalty = 0, 0, None
     aggregated = (rx, ry) != (0, 0) or slant_penalty is not None
-    gl, gr = _grey(left), _grey(right)
-    grey_l, grey_r = gl, gr  # the photo-consistency check reads the unfiltered images
-    # one texture map of the left image serves both thresholds
-    strength = _texture_strength(gl) if texture_threshold > 0 or reward_texture > 0 else None
-    flat = strength < texture_threshold if texture_threshold > 0 else None
-    textured_l = _rewarded(strength, reward_texture)
     if prefilter not in PREFILTER_MODES:
         raise StereoError(f"prefilter={prefilter!r} is not one of {', '.join(PREFILTER_MODES)}")
-    if prefilter == "highpass":
-        if color != "gray":
-            raise StereoError('prefilter="highpass" works on grey matching only (color="gray")')
-        gl = _highpass(gl, lmask, prefilter_sigma, prefilter_gain)
-        gr = _highpass(gr, rmask, prefilter_sigma, prefilter_gain)
-    elif prefilter == "edges" and color == "gray":  # like cost_window: grey kernels only
-        gl, gr = _with_edges(gl, edge_cap), _with_edges(gr, edge_cap)
-    # the sub-pixel steps fit intensities: the edge image's clipping and saturation are not
-    # a shifted copy of the other view's, and its Sobel sees the image border
-    sub_l, sub_r = (grey_l, grey_r) if prefilter == "edges" else (gl, gr)
-    ml, mr = (gl[:, :, None], gr[:, :, None]) if color == "gray" else (left, right)
-    units = 2 * (ml.shape[2] if color == "sum" else 1)  # doubled units, summed channels
+    if prefilter == "highpass" and color != "gray":
+        raise StereoError('prefilter="highpass" works on grey matching only (color="gray")')
+    if prefilter == "edges" and not edge_cap > 0:
+        raise StereoError(f"edge_cap must be > 0 grey levels, got {edge_cap}")
+    channels = left.shape[2] if color == "sum" else 1  # summed by the cost
+    units = 2 * channels  # the kernels count in doubled grey levels
     occ = int(round(occlusion_penalty * units))
     if search == "exact" and not aggregated:
-        _check_exact_width(left.shape[1], ml.shape[2] if color == "sum" else 1, occ)
+        _check_exact_width(left.shape[1], channels, occ)
     n_threads = threads or numba.get_num_threads()
     params = dict(dmin=min_disparity, nd=max_disparity + 1, occ=occ,
                   rew=int(round(match_reward * units)), combine_max=color == "max",
@@ -325,10 +314,23 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
                       slant_penalty * units)), aggregated=aggregated,
                   paper_postprocess=postprocess == "paper",
                   smooth=None if smooth is None else tuple(int(round(p * units)) for p in smooth))
-    idx, state = _match(ml, mr, lmask, rmask, textured=textured_l, **params)
-    # the steps up to the consensus median run on strips of rows side by side
-    strips = row_strips(idx.shape[0], n_threads)
+    # every step but the matching (which has its own threads) runs on strips of rows side by
+    # side where it can (the speckle filter on strips of its own)
+    strips = row_strips(left.shape[0], n_threads)
     with strip_pool(strips) as pool:
+        # the photo-consistency check and the sub-pixel steps read the unfiltered grey images
+        grey_l, grey_r, gl, gr, flat, textured_l = _inputs(
+            pool, strips, left, right,
+            edge_cap=edge_cap if prefilter == "edges" and color == "gray" else None,
+            flat_below=texture_threshold, reward_from=reward_texture)
+        if prefilter == "highpass":
+            gl = _highpass(grey_l, lmask, prefilter_sigma, prefilter_gain)
+            gr = _highpass(grey_r, rmask, prefilter_sigma, prefilter_gain)
+        # the sub-pixel steps fit intensities: the edge image's clipping and saturation are not
+        # a shifted copy of the other view's, and its Sobel sees the image border
+        sub_l, sub_r = (grey_l, grey_r) if prefilter == "edges" else (gl, gr)
+        ml, mr = (gl[:, :, None], gr[:, :, None]) if color == "gray" else (left, right)
+        idx, state = _match(ml, mr, lmask, rmask, textured=textured_l, **params)
         masked, reject = _masked_map(pool, strips, sub_l, sub_r, idx, min_disparity,
                                      fast=subpixel == "fast", median=postprocess == "median",
                                      flat=flat, columns=column_support,
@@ -366,6 +368,46 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
         # into the right image's fill or past its edge, which the programme itself never matches.
         _reject_invalid_partners(disp, rmask, min_disparity + max_disparity)
     return disp
+
+
+def _inputs(pool, strips: list[tuple[int, int]], left: np.ndarray, right: np.ndarray, *,
+            edge_cap: float | None, flat_below: float, reward_from: float) -> tuple:
+    """What the programme and the checks start from, on ``strips`` of rows side by side:
+    ``(grey_l, grey_r, matched_l, matched_r, flat, textured)``, the (H, W) uint8 grey images,
+    the images the programme matches (the edge images, :func:`_with_edges`, when
+    ``edge_cap`` is given; else the grey ones), the left image's flat pixels (texture
+    strength below ``flat_below``; None if 0) and those that earn the match reward (strength
+    at least ``reward_from``, :func:`_rewarded`; None if 0)."""
+    H, W = left.shape[:2]
+    grey = np.empty((2, H, W), np.uint8)
+    matched = grey if edge_cap is None else np.empty((2, H, W), np.uint8)
+    flat = np.empty((H, W), np.bool_) if flat_below > 0 else None
+    textured = np.empty((H, W), np.bool_) if reward_from > 0 else None
+    each_strip(pool, strips, _input_rows, left, right, edge_cap, flat_below, reward_from, grey,
+               matched, flat, textured)
+    return grey[0], grey[1], matched[0], matched[1], flat, textured
+
+
+def _input_rows(first: int, stop: int, left: np.ndarray, right: np.ndarray,
+                edge_cap: float | None, flat_below: float, reward_from: float,
+                grey: np.ndarray, matched: np.ndarray, flat: np.ndarray | None,
+                textured: np.ndarray | None) -> None:
+    """Rows ``first .. stop - 1`` of :func:`_inputs`, filtered from INPUT_HALO rows more on
+    each side (the filters' own border only touches rows that are dropped)."""
+    a, b = max(0, first - INPUT_HALO), min(left.shape[0], stop + INPUT_HALO)
+    rows, keep = slice(first, stop), slice(first - a, stop - a)
+    for i, img in enumerate((left, right)):
+        g = _grey(img[a:b])
+        grey[i, rows] = g[keep]
+        if edge_cap is not None:
+            matched[i, rows] = _with_edges(g, edge_cap)[keep]
+        if i == 0 and (flat is not None or textured is not None):
+            # one texture map of the left image serves both thresholds
+            strength = _texture_strength(g)[keep]
+            if flat is not None:
+                np.less(strength, flat_below, out=flat[rows])
+            if textured is not None:
+                np.greater_equal(strength, reward_from, out=textured[rows])  # as _rewarded
 
 
 def _masked_map(pool, strips, gl, gr, idx, dmin, *, fast, median, flat, columns, hidden):

@@ -31,6 +31,8 @@ float32's exact integers: the programme's equality-based backtrack needs exact a
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
+
 import cv2
 import numpy as np
 
@@ -46,7 +48,8 @@ from armstereo.reconstruct.birchfield.lanes import (
     lane_backtrack,
     lane_forward,
 )
-from armstereo.reconstruct.strips import each_strip, strip_pool
+
+CHUNKS_PER_THREAD = 4  # rows cost unequal amounts: threads that take small chunks finish together
 
 
 def cost_divisor(width: int, window_pixels: int, occ: int) -> int:
@@ -84,7 +87,7 @@ def match_image_aggregated(left: np.ndarray, right: np.ndarray, lmask: np.ndarra
     reward (None: all). Returns ``disp`` (H, W) int32 window indices (-1 = none) and ``state``
     (H, W) uint8 as :func:`armstereo.reconstruct.birchfield.matcher.match_rows`. Blocks of
     :data:`.lanes.LANES` rows run on ``threads`` threads, each thread setting up and matching
-    a contiguous run of blocks (:func:`block_strips`).
+    one chunk of blocks after another (:func:`block_strips`, CHUNKS_PER_THREAD per thread).
     """
     H, W = left.shape
     npix = (2 * rx + 1) * (2 * ry + 1)
@@ -94,36 +97,47 @@ def match_image_aggregated(left: np.ndarray, right: np.ndarray, lmask: np.ndarra
         textured = np.ones((H, W), np.bool_)
     images = (left, right, lmask, rmask, np.asarray(textured, np.bool_))
     params = (dmin, nd, rx, ry, q, _scaled_penalties(occ, rew, slant, npix, q))
-    strips = block_strips(H, threads)
-    with strip_pool(strips) as pool:
-        each_strip(pool, strips, _match_strip, images, params, out)
+    chunks = block_strips(H, 1 if threads <= 1 else threads * CHUNKS_PER_THREAD)
+    n = max(1, min(threads, len(chunks)))
+    todo = iter(chunks)  # each thread takes the next chunk when it is done: rows differ in cost
+    if n == 1:
+        _match_chunks(todo, images, params, out)
+        return out
+    with ThreadPoolExecutor(n - 1) as pool:
+        jobs = [pool.submit(_match_chunks, todo, images, params, out) for _ in range(n - 1)]
+        _match_chunks(todo, images, params, out)
+        for job in jobs:
+            job.result()
     return out
 
 
-def block_strips(height: int, threads: int) -> list[tuple[int, int]]:
-    """Up to ``threads`` strips ``(first, stop)`` of rows, each a run of whole blocks of
+def block_strips(height: int, count: int) -> list[tuple[int, int]]:
+    """Up to ``count`` strips ``(first, stop)`` of rows, each a run of whole blocks of
     :data:`.lanes.LANES` rows (the last one cut at ``height``), of about equal length."""
     nb = -(-height // LANES)
-    n = max(1, min(nb, threads))
+    n = max(1, min(nb, count))
     cuts = [round(i * nb / n) * LANES for i in range(n + 1)]
     return [(a, min(b, height)) for a, b in zip(cuts[:-1], cuts[1:], strict=True)]
 
 
-def _match_strip(first: int, stop: int, images: tuple, params: tuple, out: dict) -> None:
-    """Set up and match rows ``first .. stop - 1`` (whole blocks): every step reads the
-    images' rows it needs (the window's ``ry`` more each side) and writes only these rows of
-    ``out``, so strips can run side by side and give the maps of one pass over the image."""
+def _match_chunks(todo, images: tuple, params: tuple, out: dict) -> None:
+    """Set up and match chunks of rows ``(first, stop)`` (whole blocks) taken from the shared
+    iterator ``todo`` until none is left: every step reads the images' rows it needs (the
+    window's ``ry`` more each side) and writes only the chunk's rows of ``out``, so chunks
+    can run side by side and give the maps of one pass over the image."""
     left, right, lmask, rmask, textured = images
     dmin, nd, rx, ry, q, pens = params
-    rows = slice(first, stop)
-    mine = dict(disp=out["disp"][rows], state=out["state"][rows])  # views: block row 0 = first
-    nj = (-(-(stop - first) // LANES) - 1) * LANES + _vector_rows(ry)
-    bounds = np.empty((6, left.shape[1], nj), np.float32)
-    image_bounds(*(_rows_transposed(img, mask, ry, first, stop, nj)
-                   for img, mask in ((left, lmask), (right, rmask))), bounds)
-    setup = block_setup(left[rows], right[rows], lmask[rows], rmask[rows], textured[rows], dmin,
-                        nd, pens, mine["disp"], mine["state"])
-    _match_blocks(range(len(setup[4])), bounds, setup, params, mine)
+    work = _lane_work(left.shape[1], nd, rx, ry)
+    for first, stop in todo:  # a list iterator: its next() is atomic under the GIL
+        rows = slice(first, stop)
+        mine = dict(disp=out["disp"][rows], state=out["state"][rows])  # block row 0 = first
+        nj = (-(-(stop - first) // LANES) - 1) * LANES + _vector_rows(ry)
+        bounds = np.empty((6, left.shape[1], nj), np.float32)
+        image_bounds(*(_rows_transposed(img, mask, ry, first, stop, nj)
+                       for img, mask in ((left, lmask), (right, rmask))), bounds)
+        setup = block_setup(left[rows], right[rows], lmask[rows], rmask[rows], textured[rows],
+                            dmin, nd, pens, mine["disp"], mine["state"])
+        _match_blocks(range(len(setup[4])), bounds, setup, params, mine, work)
 
 
 def _rows_transposed(grey: np.ndarray, mask: np.ndarray, ry: int, first: int, stop: int,
@@ -151,13 +165,15 @@ def _scaled_penalties(occ: int, rew: int, slant: int, npix: int, q: int) -> np.n
 
 
 def _match_blocks(blocks: range, bounds: np.ndarray, setup: tuple, params: tuple,
-                  out: dict) -> None:
+                  out: dict, work: tuple) -> None:
     """Match the blocks of rows ``blocks`` (indices; the kernels release the GIL), set up by
-    :func:`.blocks.block_setup` (``setup``)."""
+    :func:`.blocks.block_setup` (``setup``), with the thread's work arrays ``work``
+    (:func:`_lane_work`)."""
     dmin, nd, rx, ry, q, pens = params
     disp, state = out["disp"], out["state"]
     geos, pen_ls, rews, pen_rs, ranges = setup
-    costs, phi, rbest, run, ints, sloc = _lane_work(bounds, nd, rx, ry)
+    col_lims_ring_d, phi, rbest, run, ints, sloc = work
+    costs = (bounds, *col_lims_ring_d)
     slant = pens[SLANT]
     fused = rx == 0 and 0 <= ry <= FUSED_MAX_RY and dmin >= 0  # the common windows
     for b in blocks:
@@ -180,16 +196,17 @@ def _vector_rows(ry: int) -> int:
     return -(-(LANES + 2 * ry) // LANES) * LANES
 
 
-def _lane_work(bounds: np.ndarray, nd: int, rx: int, ry: int) -> tuple:
-    """Work arrays of one thread, allocated here rather than in the kernels: every array type
-    a kernel creates compiles its own allocation code (numba's cold start).
+def _lane_work(W: int, nd: int, rx: int, ry: int) -> tuple:
+    """Work arrays of one thread for images ``W`` wide, allocated here rather than in the
+    kernels: every array type a kernel creates compiles its own allocation code (numba's cold
+    start).
 
-    ``(costs, phi, rbest, run, ints, sloc)`` as the kernels of :mod:`.lanes` name them,
-    ``costs`` = ``(bounds, col, lims, ring, d)`` (``bounds`` shared by the
-    threads); ``phi`` starts INF (its padding stays so).
+    ``((col, lims, ring, d), phi, rbest, run, ints, sloc)`` as the kernels of :mod:`.lanes`
+    name them (their ``costs`` is ``(bounds, col, lims, ring, d)``); ``phi`` starts INF (its
+    padding stays so).
     """
-    f32, L, W = np.float32, LANES, bounds.shape[1]
-    costs = (bounds, np.empty((nd, _vector_rows(ry)), f32), np.empty((2, L), f32),
+    f32, L = np.float32, LANES
+    costs = (np.empty((nd, _vector_rows(ry)), f32), np.empty((2, L), f32),
              np.empty((2 * rx + 1, nd, L), f32), np.empty((W, nd, L), f32))
     return (costs, np.full((W + 1, nd + 2, L), INF, f32), np.empty((W + nd + 1, L), f32),
             np.empty(L, f32), np.empty((2, W + nd), np.int32), np.empty(W, np.uint8))
