@@ -626,16 +626,32 @@ def _flat_and_hidden(disp: np.ndarray, reject: np.ndarray, flat: np.ndarray | No
     out = np.empty((H, W), np.bool_)
     kind = along = None
     if flat is not None:
-        kind = np.isfinite(disp).view(np.uint8)  # a new array: 2 * flat + finite (KIND_*)
-        kind += np.ascontiguousarray(flat, np.bool_).view(np.uint8) * np.uint8(2)
-        if columns:  # the same test along the columns, on transposed copies (OpenCV's
-            # transpose: several times faster than numpy's copy of a transposed view)
-            across = np.empty((W, H), np.bool_)
-            each_strip(pool, row_strips(W, len(strips)), _rows, cv2.transpose(disp),
-                       cv2.transpose(kind), None, across, tolerance, None, False, across)
-            along = cv2.transpose(across.view(np.uint8)).view(np.bool_)
+        kind = np.empty((H, W), np.uint8)  # 2 * flat + finite (KIND_*)
+        each_strip(pool, strips, _kinds, disp, np.ascontiguousarray(flat, np.bool_), kind)
+        if columns:  # the same test along the columns, on strips of columns
+            along = np.empty((H, W), np.bool_)
+            each_strip(pool, row_strips(W, len(strips)), _columns, disp, kind, tolerance, along)
     each_strip(pool, strips, _rows, disp, kind, along, reject, tolerance, hidden, apply, out)
     return out
+
+
+def _kinds(first: int, stop: int, disp: np.ndarray, flat: np.ndarray, kind: np.ndarray) -> None:
+    """Rows ``first .. stop - 1`` of ``kind``: 2 * flat + answered (the KIND_* of
+    :func:`row_rejects`)."""
+    rows = kind[first:stop]
+    np.isfinite(disp[first:stop], out=rows.view(np.bool_))
+    rows += flat[first:stop].view(np.uint8) * np.uint8(2)
+
+
+def _columns(first: int, stop: int, disp: np.ndarray, kind: np.ndarray, tolerance: float,
+             along: np.ndarray) -> None:
+    """Columns ``first .. stop - 1`` of the column test (``along``): the row test of
+    :func:`_rows` on transposed copies (OpenCV's transpose: several times faster than
+    numpy's copy of a transposed view)."""
+    across = np.empty((stop - first, disp.shape[0]), np.bool_)
+    _rows(0, stop - first, cv2.transpose(disp[:, first:stop]),
+          cv2.transpose(kind[:, first:stop]), None, across, tolerance, None, False, across)
+    along[:, first:stop] = cv2.transpose(across.view(np.uint8)).view(np.bool_)
 
 
 def _rows(first: int, stop: int, disp: np.ndarray, kind: np.ndarray | None,

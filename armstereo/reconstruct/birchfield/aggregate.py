@@ -49,7 +49,10 @@ from armstereo.reconstruct.birchfield.lanes import (
     lane_forward,
 )
 
-CHUNKS_PER_THREAD = 4  # rows cost unequal amounts: threads that take small chunks finish together
+# rows cost unequal amounts: threads that take small chunks finish together, but a chunk's
+# set-up costs about 0.3 ms however small it is (bench/results/stereo_scaling.md)
+CHUNKS_PER_THREAD = 4
+MIN_CHUNK_BLOCKS = 12  # blocks of LANES rows (8, 12, 16 measured)
 
 
 def cost_divisor(width: int, window_pixels: int, occ: int) -> int:
@@ -97,7 +100,9 @@ def match_image_aggregated(left: np.ndarray, right: np.ndarray, lmask: np.ndarra
         textured = np.ones((H, W), np.bool_)
     images = (left, right, lmask, rmask, np.asarray(textured, np.bool_))
     params = (dmin, nd, rx, ry, q, _scaled_penalties(occ, rew, slant, npix, q))
-    chunks = block_strips(H, 1 if threads <= 1 else threads * CHUNKS_PER_THREAD)
+    threads = max(1, threads)
+    per_thread = -(-H // LANES) // (threads * MIN_CHUNK_BLOCKS)  # whole chunks per thread
+    chunks = block_strips(H, threads * max(1, min(CHUNKS_PER_THREAD, per_thread)))
     n = max(1, min(threads, len(chunks)))
     todo = iter(chunks)  # each thread takes the next chunk when it is done: rows differ in cost
     if n == 1:

@@ -16,12 +16,13 @@ from armstereo.errors import StereoError
 from armstereo.evaluation.disparity import evaluate_disparity
 from armstereo.io.disparity import read_disparity
 from armstereo.reconstruct import stereo
-from armstereo.reconstruct.birchfield import jit
+from armstereo.reconstruct.birchfield import aggregate, jit
 from armstereo.reconstruct.birchfield.aggregate import (
     cost_divisor,
     fill_outside,
     match_image_aggregated,
 )
+from armstereo.reconstruct.birchfield.lanes import LANES
 from armstereo.reconstruct.birchfield.matcher import match_image
 from armstereo.reconstruct.stereo import PAPER_OPTIONS, birchfield
 from tests.support import MIDDLEBURY
@@ -67,6 +68,34 @@ def test_threads_split_rows_into_blocks_without_changing_the_result():
     two = match_image_aggregated(left, right, m, m, 0, 16, 50, 10, 1, 1, slant=20, threads=2)
     for key in one:
         np.testing.assert_array_equal(one[key], two[key])
+
+
+@pytest.mark.parametrize("height", [1, 8, 95, 96, 385])
+@pytest.mark.parametrize("count", [1, 2, 7, 100])
+def test_chunks_are_whole_blocks_covering_the_rows_once(height, count):
+    chunks = aggregate.block_strips(height, count)
+    assert chunks[0][0] == 0 and chunks[-1][1] == height and len(chunks) <= count
+    assert all(b == c for (_, b), (c, _) in zip(chunks[:-1], chunks[1:], strict=True))
+    assert all(a % LANES == 0 and a < b for a, b in chunks)
+
+
+@pytest.mark.parametrize("min_blocks", [1, 12])  # many chunks per thread; one
+def test_chunks_taken_by_threads_give_the_one_pass_maps(monkeypatch, min_blocks):
+    """A tall pair with a rectification-like fill: the chunks' halos and fills match the
+    whole image's."""
+    monkeypatch.setattr(aggregate, "MIN_CHUNK_BLOCKS", min_blocks)
+    left, right = box_pair(3, 10, (40, 90, 150, 260), shape=(300, 140), seed=7)
+    lmask = np.ones(left.shape, bool)
+    lmask[:, :4] = False
+    lmask[100:140, 130:] = False
+    rmask = np.roll(lmask, 5, axis=0)
+    textured = texture(left.shape, 3) > 120
+    args = (left, right, lmask, rmask, 0, 16, 50, 10, 0, 1)
+    one = match_image_aggregated(*args, slant=20, textured=textured, threads=1)
+    for threads in (2, 3):
+        got = match_image_aggregated(*args, slant=20, textured=textured, threads=threads)
+        for key in one:
+            np.testing.assert_array_equal(one[key], got[key])
 
 
 def test_cost_divisor_keeps_rows_exact_in_float32():
