@@ -113,7 +113,7 @@ from armstereo.reconstruct.birchfield.refine import (
 from armstereo.reconstruct.birchfield.vertical import match_image_vertical
 from armstereo.reconstruct.consensus import replace_outliers
 from armstereo.reconstruct.speckles import remove_speckles
-from armstereo.reconstruct.strips import each_strip, row_strips, strip_pool
+from armstereo.reconstruct.strips import each_strip, row_strips, thread_pool
 
 log = logging.getLogger(__name__)
 
@@ -317,7 +317,7 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
     # every step but the matching (which has its own threads) runs on strips of rows side by
     # side where it can (the speckle filter on strips of its own)
     strips = row_strips(left.shape[0], n_threads)
-    with strip_pool(strips) as pool:
+    with thread_pool(n_threads) as pool:
         # the photo-consistency check and the sub-pixel steps read the unfiltered grey images
         grey_l, grey_r, gl, gr, flat, textured_l = _inputs(
             pool, strips, left, right,
@@ -330,7 +330,7 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
         # a shifted copy of the other view's, and its Sobel sees the image border
         sub_l, sub_r = (grey_l, grey_r) if prefilter == "edges" else (gl, gr)
         ml, mr = (gl[:, :, None], gr[:, :, None]) if color == "gray" else (left, right)
-        idx, state = _match(ml, mr, lmask, rmask, textured=textured_l, **params)
+        idx, state = _match(ml, mr, lmask, rmask, textured=textured_l, pool=pool, **params)
         masked, reject = _masked_map(pool, strips, sub_l, sub_r, idx, min_disparity,
                                      fast=subpixel == "fast", median=postprocess == "median",
                                      flat=flat, columns=column_support,
@@ -339,7 +339,7 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
             textured_r = _rewarded(_texture_strength(grey_r), reward_texture)
             idx_r, state_r = _match(mr[:, ::-1], ml[:, ::-1], rmask[:, ::-1], lmask[:, ::-1],
                                     textured=None if textured_r is None else textured_r[:, ::-1],
-                                    **params)
+                                    pool=pool, **params)
             # mirrored, swapped pair: its "left" is the mirrored right image
             idx_r = np.where(state_r >= _dp.BORDER, -1, idx_r)
             idx_r = np.ascontiguousarray(idx_r[:, ::-1])
@@ -683,9 +683,10 @@ def _clip_to_window(disp: np.ndarray, min_disparity: int, max_disparity: int) ->
 
 
 def _match(left, right, lmask, rmask, *, dmin, nd, occ, rew, combine_max, mode, threads,
-           rx, ry, slant, aggregated, paper_postprocess, smooth=None, textured=None):
+           rx, ry, slant, aggregated, paper_postprocess, smooth=None, textured=None, pool=None):
     """Scanline matching (+ the paper's postprocessing) -> ``(index, state)``: int32 window
-    indices (-1 = no match) and the states of :mod:`armstereo.reconstruct.birchfield.dp_pruned`."""
+    indices (-1 = no match) and the states of :mod:`armstereo.reconstruct.birchfield.dp_pruned`;
+    the default matcher runs on ``pool``'s threads (None: its own)."""
     lm = np.ascontiguousarray(left)
     rm = np.ascontiguousarray(right)
     lk, rk = np.ascontiguousarray(lmask), np.ascontiguousarray(rmask)
@@ -696,7 +697,8 @@ def _match(left, right, lmask, rmask, *, dmin, nd, occ, rew, combine_max, mode, 
         idx, state = out["disp"], out["state"]
     elif aggregated or (mode == DP_EXACT and not combine_max and lm.shape[2] == 1):
         out = match_image_aggregated(lm[:, :, 0], rm[:, :, 0], lk, rk, dmin, nd, occ, rew, rx,
-                                     ry, slant=slant, textured=textured, threads=threads)
+                                     ry, slant=slant, textured=textured, threads=threads,
+                                     pool=pool)
         idx, state = out["disp"], out["state"]
     else:
         idx, state = match_image(lm, rm, lk, rk, dmin, nd, occ, rew, combine_max=combine_max,

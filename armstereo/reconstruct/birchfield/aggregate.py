@@ -81,7 +81,7 @@ def fill_outside(grey: np.ndarray, mask: np.ndarray) -> np.ndarray:
 def match_image_aggregated(left: np.ndarray, right: np.ndarray, lmask: np.ndarray,
                            rmask: np.ndarray, dmin: int, nd: int, occ: int, rew: int, rx: int,
                            ry: int, *, slant: int = -1, textured: np.ndarray | None = None,
-                           threads: int = 1) -> dict[str, np.ndarray]:
+                           threads: int = 1, pool=None) -> dict[str, np.ndarray]:
     """Match (H, W) uint8 grey images on ``(2 ry + 1) x (2 rx + 1)`` aggregated costs.
 
     ``lmask``/``rmask``: (H, W) bool validity; the window is ``[dmin, dmin + nd - 1]``;
@@ -90,7 +90,9 @@ def match_image_aggregated(left: np.ndarray, right: np.ndarray, lmask: np.ndarra
     reward (None: all). Returns ``disp`` (H, W) int32 window indices (-1 = none) and ``state``
     (H, W) uint8 as :func:`armstereo.reconstruct.birchfield.matcher.match_rows`. Blocks of
     :data:`.lanes.LANES` rows run on ``threads`` threads, each thread setting up and matching
-    one chunk of blocks after another (:func:`block_strips`, CHUNKS_PER_THREAD per thread).
+    one chunk of blocks after another (:func:`block_strips`, CHUNKS_PER_THREAD per thread):
+    the calling thread and ``threads - 1`` of ``pool``'s (a ThreadPoolExecutor with that many
+    workers; None: a pool of its own).
     """
     H, W = left.shape
     npix = (2 * rx + 1) * (2 * ry + 1)
@@ -107,13 +109,20 @@ def match_image_aggregated(left: np.ndarray, right: np.ndarray, lmask: np.ndarra
     todo = iter(chunks)  # each thread takes the next chunk when it is done: rows differ in cost
     if n == 1:
         _match_chunks(todo, images, params, out)
-        return out
-    with ThreadPoolExecutor(n - 1) as pool:
-        jobs = [pool.submit(_match_chunks, todo, images, params, out) for _ in range(n - 1)]
-        _match_chunks(todo, images, params, out)
-        for job in jobs:
-            job.result()
+    elif pool is None:
+        with ThreadPoolExecutor(n - 1) as own:
+            _on_threads(own, n, todo, images, params, out)
+    else:
+        _on_threads(pool, n, todo, images, params, out)
     return out
+
+
+def _on_threads(pool, n: int, todo, images: tuple, params: tuple, out: dict) -> None:
+    """:func:`_match_chunks` on the calling thread and ``n - 1`` of ``pool``'s."""
+    jobs = [pool.submit(_match_chunks, todo, images, params, out) for _ in range(n - 1)]
+    _match_chunks(todo, images, params, out)
+    for job in jobs:
+        job.result()
 
 
 def block_strips(height: int, count: int) -> list[tuple[int, int]]:

@@ -7,7 +7,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import pytest
 
-from armstereo.reconstruct.strips import MIN_STRIP_ROWS, each_strip, row_strips, strip_pool
+from armstereo.reconstruct.strips import MIN_STRIP_ROWS, each_strip, row_strips, thread_pool
 
 
 @pytest.mark.parametrize("height", [1, MIN_STRIP_ROWS - 1, MIN_STRIP_ROWS * 2, 288, 481])
@@ -28,7 +28,7 @@ def test_each_strip_returns_in_strip_order_and_uses_the_pool():
         names[first] = threading.current_thread().name
         return scale * first + stop
 
-    with strip_pool(strips) as pool:
+    with thread_pool(len(strips)) as pool:
         assert isinstance(pool, ThreadPoolExecutor)
         got = each_strip(pool, strips, job, 10)
     assert got == [10 * a + b for a, b in strips]
@@ -38,6 +38,6 @@ def test_each_strip_returns_in_strip_order_and_uses_the_pool():
 
 def test_one_strip_needs_no_pool():
     strips = row_strips(20, 4)
-    with strip_pool(strips) as pool:
+    with thread_pool(len(strips)) as pool:
         assert pool is None
         assert each_strip(pool, strips, lambda a, b: (a, b)) == [(0, 20)]
