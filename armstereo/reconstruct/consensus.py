@@ -127,24 +127,25 @@ def _undecided(padded: np.ndarray, disp: np.ndarray, ok: np.ndarray, size: int, 
     below = cv2.add(x, 1.5 - reach + CONSENSUS_MARGIN, dtype=cv2.CV_8U)
     centres = np.array(list(range(-(r - 1), r - 1, 3)) + [r - 1], np.int64)  # 3x3 blocks
     out = np.empty((H, W), np.bool_)
+    # the scratch allocated here: an allocation in a kernel compiles code of its own
     undecided_pixels(hi, mid, lo, above, below, ok, np.int64(r), centres,
-                     np.int64(size * size // 2 + 1), out)
+                     np.int64(size * size // 2 + 1), np.empty((2, W), np.uint8), out)
     return out
 
 
 @njit(cache=True, nogil=True)
-def undecided_pixels(hi, mid, lo, above, below, ok, r, centres, half, out):
+def undecided_pixels(hi, mid, lo, above, below, ok, r, centres, half, counts, out):
     """The test of :func:`_undecided`: ``out`` (H, W) bool is True where ``ok`` and the 3x3
     blocks of the window (centred ``centres`` rows and columns from the pixel, in the
     codes padded by ``r``) may hold ``half`` codes above ``above`` (a block whose median
     ``mid`` is above counts 9, one with only its maximum ``hi`` above counts 4) or below
-    ``below`` (minimum ``lo``). One pass that releases the GIL: as 36 OpenCV compares and
-    numpy sums per strip, the threads of :func:`replace_outliers` waited on each other."""
+    ``below`` (minimum ``lo``). ``counts``: (2, W) uint8 scratch (at most 16 blocks of 9:
+    sides up to CONSENSUS_BOUNDED_MAX). One pass that releases the GIL: as 36 OpenCV
+    compares and numpy sums per strip, the threads of :func:`replace_outliers` waited on
+    each other."""
     H, W = out.shape
-    # uint8 counts: at most 16 blocks (sides up to CONSENSUS_BOUNDED_MAX) of 9
-    n_hi = np.empty(W, np.uint8)
-    n_lo = np.empty(W, np.uint8)
-    four, five, h = np.uint8(4), np.uint8(5), np.uint8(half)
+    n_hi, n_lo = counts[0], counts[1]
+    h = np.uint8(half)
     for y in range(H):
         for x in range(W):  # a plain loop: a slice assignment compiles far more code
             n_hi[x] = 0
@@ -154,14 +155,14 @@ def undecided_pixels(hi, mid, lo, above, below, ok, r, centres, half, out):
             for dx in centres:
                 # slices, indexed from 0: no wraparound test per load, so LLVM vectorises
                 row, c = y + r + dy, r + dx
-                hr, mr, lr = hi[row, c:c + W], mid[row, c:c + W], lo[row, c:c + W]
+                hr, mr, lr = hi[row, c:], mid[row, c:], lo[row, c:]
                 for x in range(W):
                     m = mr[x]
-                    n_hi[x] += four * np.uint8(hr[x] > b[x]) + five * np.uint8(m > b[x])
-                    n_lo[x] += four * np.uint8(lr[x] < a[x]) + five * np.uint8(m < a[x])
+                    n_hi[x] += np.uint8((hr[x] > b[x]) * 4 + (m > b[x]) * 5)
+                    n_lo[x] += np.uint8((lr[x] < a[x]) * 4 + (m < a[x]) * 5)
         o, k = out[y], ok[y]
         for x in range(W):
-            o[x] = k[x] & ((n_hi[x] >= h) | (n_lo[x] >= h))
+            o[x] = k[x] and (n_hi[x] >= h or n_lo[x] >= h)
 
 
 def _window_median(padded: np.ndarray, at: np.ndarray, size: int, width: int) -> np.ndarray:

@@ -95,7 +95,8 @@ def test_undecided_kernel_counts_blocks_as_defined(size):
     expected = ok & ((n_hi >= half) | (n_lo >= half))
     got = np.empty((H, W), np.bool_)
     consensus.undecided_pixels(hi, mid, lo, above, below, ok, np.int64(r),
-                               np.array(centres, np.int64), np.int64(half), got)
+                               np.array(centres, np.int64), np.int64(half),
+                               np.empty((2, W), np.uint8), got)
     assert 0 < expected.sum() < expected.size  # both answers occur
     np.testing.assert_array_equal(got, expected)
 
