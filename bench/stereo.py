@@ -393,12 +393,12 @@ that have no answer, leaving out the left band `x < min + max disparity` (where 
 nothing); averaged over the pairs. "Wrong answers" = share of the answered pixels with ground
 truth (occluded ones included) whose error exceeds 2 px. Times: median over the runs after one
 warm-up, both peers interleaved run by run; threads set with `cv2.setNumThreads` and
-`numba.set_num_threads` (birchfield matches rows on that many threads, and runs most steps
-after the matching on strips of rows on as many; the speckle filter and the column test stay on
-one). Same disparity window for both: the Middlebury v2 range rounded up to SGBM's multiple of
-16. Option sets: one timed run each, so their times are rough. The machine is shared: times
-move by 10-20 % from run to run, the ratios much less. Whether the matcher's threads slow the
-stages after it: bench/stereo_threads.py (stereo_threads.md).
+`numba.set_num_threads` (birchfield matches chunks of rows on that many threads and runs the
+other steps on strips of rows; scaling in bench/results/stereo_scaling.md). Same disparity
+window for both: the Middlebury v2 range rounded up to SGBM's multiple of 16. Option sets:
+one timed run each, so their times are rough. The machine is shared: times move by 10-20 %
+from run to run, the ratios much less. Whether the matcher's threads slow the stages after
+it: bench/stereo_threads.py (stereo_threads.md).
 """
 
 

@@ -26,7 +26,7 @@ import numpy as np
 
 from armstereo.reconstruct.strips import each_strip
 
-PARALLEL_LOAD = 0.75  # strips only when each thread's rows are at most this share of the image
+BAND_SHARE = 0.5  # the bands' rows at most this share of the image's: fewer strips then
 
 
 def remove_speckles(disp: np.ndarray, size: int, max_diff: float, *, pool=None,
@@ -46,12 +46,13 @@ def remove_speckles(disp: np.ndarray, size: int, max_diff: float, *, pool=None,
 
 def _runs(height: int, size: int, threads: int) -> list[tuple[int, int]]:
     """Strips ``(first, stop)``, one per thread: every strip but the first also filters the
-    band of ``2 size`` rows around its first row, so the first is that much taller; a single
-    strip when the threads would each get more than PARALLEL_LOAD of the rows."""
-    n = max(1, threads)
-    load = (height + 2 * size * (n - 1)) / n  # rows per thread
-    if n == 1 or load > PARALLEL_LOAD * height:
+    band of ``2 size`` rows around its first row, so the first is that much taller. As many
+    strips as the threads, or fewer where the bands would add more than BAND_SHARE of the
+    image's rows (two strips from 4 ``size`` rows on): a single one on short images."""
+    n = max(1, min(threads, 1 + int(BAND_SHARE * height) // (2 * max(1, size))))
+    if n == 1:
         return [(0, height)]
+    load = (height + 2 * size * (n - 1)) / n  # rows per thread
     rest = (height - load) / (n - 1)  # rows of each strip after the first
     cuts = [0] + [round(load + i * rest) for i in range(n - 1)] + [height]
     return list(zip(cuts[:-1], cuts[1:], strict=True))

@@ -238,9 +238,11 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
       paper's background fill.
     - ``lr_check``: also match right-to-left (mirrored pair) and reject disparities that differ
       by more than one pixel. Matching takes twice as long.
-    - ``threads``: rows are matched, and most steps after the matching run on strips of rows
-      (:mod:`.strips`), on this many threads (default ``numba.get_num_threads()``); the
-      result does not depend on it.
+    - ``threads``: the steps run on this many threads (default ``numba.get_num_threads()``):
+      the matching on chunks of rows the threads take in turn, the others on strips of rows
+      side by side (:mod:`.strips`, :mod:`.speckles`); the result does not depend on it. A
+      second thread pays on camera-sized images (1.7-1.9x at 0.3-1.5 megapixels), much less
+      on small ones (bench/results/stereo_scaling.md).
     - ``prefilter``: ``"edges"`` matches ``I + clip(Sobel_x(I), -edge_cap, edge_cap)`` of
       each grey image (3x3 horizontal Sobel, saturated to uint8; :func:`_with_edges`): the
       dissimilarity then also compares the images' horizontal gradients, as SGBM's prefiltered

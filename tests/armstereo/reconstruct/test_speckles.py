@@ -65,7 +65,7 @@ def test_strips_give_the_whole_image_map(threads, size):
     rng = np.random.default_rng(threads * 100 + size)
     with ThreadPoolExecutor(threads - 1) as pool:
         for levels in (2, 3, 6):
-            disp = islands(rng, (int(rng.integers(5 * size, 9 * size)), 70), levels)
+            disp = islands(rng, (int(rng.integers(8 * size, 12 * size)), 70), levels)
             runs = speckles._runs(disp.shape[0], size, threads)
             assert len(runs) == threads  # tall enough: the strips really run
             expected = whole_image(disp, size, 2.0)
@@ -88,8 +88,9 @@ def test_a_region_crossing_the_cut_is_judged_whole(length):
     assert np.isnan(got[disp == 7.0]).all() == (length <= size)
 
 
-def test_short_images_stay_whole():
-    assert speckles._runs(300, 100, 2) == [(0, 300)]  # each thread would get 250 rows
+def test_short_images_stay_whole_and_bands_stay_a_minor_share():
+    assert speckles._runs(399, 100, 2) == [(0, 399)]  # a band of 200 rows: more than half
     assert speckles._runs(1000, 100, 1) == [(0, 1000)]
     first, second = speckles._runs(1000, 100, 2)
     assert first == (0, 600) and second == (600, 1000)  # 400 rows + a band of 200
+    assert len(speckles._runs(1000, 100, 16)) == 3  # 2 bands of 200 rows; a third: 600
