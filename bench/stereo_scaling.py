@@ -67,9 +67,21 @@ def timed(func, *args, **kwargs) -> tuple[float, np.ndarray]:
     return time.perf_counter() - t0, out
 
 
+def cpu_jiffies() -> tuple[int, int] | None:
+    """(steal, total) jiffies of all CPUs so far (Linux ``/proc/stat``; None elsewhere):
+    time the hypervisor gave the machine's virtual CPUs to others."""
+    try:
+        fields = [int(v) for v in Path("/proc/stat").read_text().split("\n")[0].split()[1:]]
+    except (OSError, ValueError):
+        return None
+    return (fields[7] if len(fields) > 7 else 0), sum(fields)
+
+
 def measure(case, rounds: int) -> dict:
-    """Median times at 1 and 2 threads and the median per-round speed-up, for both peers."""
+    """Median times at 1 and 2 threads and the median per-round speed-up, for both peers, and
+    the share of CPU time stolen by the hypervisor meanwhile."""
     name, left, right, dmin, dmax = case
+    before = cpu_jiffies()
     peers = {"birchfield": birchfield, "sgbm": sgbm}
     res = {}
     for peer, func in peers.items():
@@ -88,18 +100,22 @@ def measure(case, rounds: int) -> dict:
                          speedup=statistics.median(a / b for a, b in zip(times[1], times[2],
                                                                          strict=True)))
     res["pixels"] = left.shape[0] * left.shape[1]
+    after = cpu_jiffies()
+    res["steal"] = (None if before is None or after is None or after[1] == before[1]
+                    else (after[0] - before[0]) / (after[1] - before[1]))
     return res
 
 
 def table(rows: list[tuple[str, dict]]) -> str:
     lines = ["| pair | megapixels | birchfield 1 thread (ms) | 2 threads (ms) | speed-up | "
-             "SGBM 1 thread (ms) | 2 threads (ms) | speed-up |",
-             "|---|---|---|---|---|---|---|---|"]
+             "SGBM 1 thread (ms) | 2 threads (ms) | speed-up | CPU stolen |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for name, r in rows:
         b, s = r["birchfield"], r["sgbm"]
+        steal = "-" if r["steal"] is None else f"{100 * r['steal']:.1f} %"
         lines.append(f"| {name} | {r['pixels'] / 1e6:.2f} | {1000 * b['one']:.1f} | "
                      f"{1000 * b['two']:.1f} | {b['speedup']:.2f} | {1000 * s['one']:.1f} | "
-                     f"{1000 * s['two']:.1f} | {s['speedup']:.2f} |")
+                     f"{1000 * s['two']:.1f} | {s['speedup']:.2f} | {steal} |")
     return "\n".join(lines) + "\n"
 
 
@@ -128,8 +144,11 @@ def main(argv: list[str] | None = None) -> int:
 
 NOTES = """\
 Speed-up: median over the rounds of (time at one thread) / (time at two threads), the two
-calls of a round run back to back; times: medians. Fewer rounds (a third) for the tiled
-inputs. The maps at one and two threads are identical for every pair (checked by the script).
+calls of a round run back to back; times: medians. CPU stolen: the share of the virtual
+CPUs' time the hypervisor gave to other machines while the pair ran (`/proc/stat`); two
+threads need both CPUs, so they suffer more from it than one. Fewer rounds (a third) for
+the 3x3 tiles. The maps at one and two threads are identical for every pair (checked by the
+script).
 What runs on the threads (armstereo/reconstruct/stereo.py, birchfield/aggregate.py): the
 grey images, edge prefilter and texture maps, the sub-pixel step and median, the flat-pixel
 and hidden tests (the column test on strips of columns), the consensus median, on strips of
