@@ -241,7 +241,7 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int, *,
     - ``threads``: the steps run on this many threads (default ``numba.get_num_threads()``):
       the matching on chunks of rows the threads take in turn, the others on strips of rows
       side by side (:mod:`.strips`, :mod:`.speckles`); the result does not depend on it. A
-      second thread pays on camera-sized images (1.7-1.9x at 0.3-1.5 megapixels), much less
+      second thread pays on camera-sized images (1.5-1.9x at 0.3-1.5 megapixels), much less
       on small ones (bench/results/stereo_scaling.md).
     - ``prefilter``: ``"edges"`` matches ``I + clip(Sobel_x(I), -edge_cap, edge_cap)`` of
       each grey image (3x3 horizontal Sobel, saturated to uint8; :func:`_with_edges`): the
