@@ -29,9 +29,8 @@ CONSENSUS_MARGIN = 1e-3  # codes: narrows the acceptable codes beyond float32 ro
 CONSENSUS_REACH = 512  # codes: max_diff / step at most this for float32 bounds below 1024
 
 
-def replace_outliers(disp: np.ndarray, size: int, dmin: int, dmax: int,
-                      max_diff: float, *, pool=None,
-                      strips: list[tuple[int, int]] | None = None) -> None:
+def replace_outliers(disp: np.ndarray, size: int, dmin: int, dmax: int, max_diff: float, *,
+                     pool=None, strips: list[tuple[int, int]] | None = None) -> None:
     """Answered pixels more than ``max_diff`` from the median answer of the ``size`` square
     around them take that median (in place): a streak a few rows high, or a blob, that
     disagrees with the surface around it is replaced by what the surface says.

@@ -6,8 +6,8 @@ A region is a 4-connected set of answered pixels whose neighbours differ by at m
 side by side it gives the same map as on the whole image, at the price of one extra band of
 rows around each cut:
 
-- a strip's filter keeps what the whole image's keeps: a region is at least as large as
-  its part within the strip;
+- what a strip's filter keeps, the whole image's keeps too: a region is at least as large
+  as its part within the strip;
 - a region the strip's filter removed and that does not cross a cut is the whole region,
   rightly removed;
 - one that crosses a cut has at most ``size`` pixels, so it lies within ``size`` rows of the

@@ -50,7 +50,7 @@ from armstereo.reconstruct.birchfield.lanes import (
 )
 
 # rows cost unequal amounts: threads that take small chunks finish together, but a chunk's
-# set-up costs about 0.3 ms however small it is (bench/results/stereo_scaling.md)
+# set-up costs 0.3-0.5 ms however small it is (bench/results/stereo_scaling.md)
 CHUNKS_PER_THREAD = 4
 MIN_CHUNK_BLOCKS = 12  # blocks of LANES rows (8, 12, 16 measured)
 
@@ -90,7 +90,8 @@ def match_image_aggregated(left: np.ndarray, right: np.ndarray, lmask: np.ndarra
     reward (None: all). Returns ``disp`` (H, W) int32 window indices (-1 = none) and ``state``
     (H, W) uint8 as :func:`armstereo.reconstruct.birchfield.matcher.match_rows`. Blocks of
     :data:`.lanes.LANES` rows run on ``threads`` threads, each thread setting up and matching
-    one chunk of blocks after another (:func:`block_strips`, CHUNKS_PER_THREAD per thread):
+    one chunk of blocks after another (:func:`block_strips`; up to CHUNKS_PER_THREAD per
+    thread, each at least MIN_CHUNK_BLOCKS blocks):
     the calling thread and ``threads - 1`` of ``pool``'s (a ThreadPoolExecutor with that many
     workers; None: a pool of its own).
     """
