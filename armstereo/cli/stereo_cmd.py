@@ -62,7 +62,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                     help="near depth jumps, drop matches whose views differ by more than G "
                     "grey levels (against foreground fattening; clean images; default 0 = off)")
     bt.add_argument("--threads", type=args_.whole(1, 256), default=None, metavar="K",
-                    help="rows are matched on K threads (default: all cores)")
+                    help="match and filter on K threads (default: all cores; same map)")
     p.set_defaults(func=run)
 
 
