@@ -698,9 +698,13 @@ def _match(left, right, lmask, rmask, *, dmin, nd, occ, rew, combine_max, mode, 
                                    slant=slant, textured=textured)
         idx, state = out["disp"], out["state"]
     elif aggregated or (mode == DP_EXACT and not combine_max and lm.shape[2] == 1):
+        # the matcher's threads set -1 on the pixels without a partner (as below), unless the
+        # paper's postprocessing needs the dense map first
         out = match_image_aggregated(lm[:, :, 0], rm[:, :, 0], lk, rk, dmin, nd, occ, rew, rx,
                                      ry, slant=slant, textured=textured, threads=threads,
-                                     pool=pool)
+                                     pool=pool, keep_unmatched=paper_postprocess)
+        if not paper_postprocess:
+            return out["disp"], out["state"]
         idx, state = out["disp"], out["state"]
     else:
         idx, state = match_image(lm, rm, lk, rk, dmin, nd, occ, rew, combine_max=combine_max,

@@ -39,7 +39,7 @@ import numpy as np
 from armstereo.reconstruct.birchfield.blocks import block_setup
 from armstereo.reconstruct.birchfield.cost import INF
 from armstereo.reconstruct.birchfield.dp_exact import EXACT_BELOW, MAX_PIXEL_COST
-from armstereo.reconstruct.birchfield.dp_pruned import C0, NO_VARIATION_PENALTY
+from armstereo.reconstruct.birchfield.dp_pruned import BORDER, C0, NO_VARIATION_PENALTY
 from armstereo.reconstruct.birchfield.fused import FUSED_MAX_RY, lane_forward_column
 from armstereo.reconstruct.birchfield.lanes import (
     LANES,
@@ -81,7 +81,8 @@ def fill_outside(grey: np.ndarray, mask: np.ndarray) -> np.ndarray:
 def match_image_aggregated(left: np.ndarray, right: np.ndarray, lmask: np.ndarray,
                            rmask: np.ndarray, dmin: int, nd: int, occ: int, rew: int, rx: int,
                            ry: int, *, slant: int = -1, textured: np.ndarray | None = None,
-                           threads: int = 1, pool=None) -> dict[str, np.ndarray]:
+                           threads: int = 1, pool=None,
+                           keep_unmatched: bool = True) -> dict[str, np.ndarray]:
     """Match (H, W) uint8 grey images on ``(2 ry + 1) x (2 rx + 1)`` aggregated costs.
 
     ``lmask``/``rmask``: (H, W) bool validity; the window is ``[dmin, dmin + nd - 1]``;
@@ -93,7 +94,9 @@ def match_image_aggregated(left: np.ndarray, right: np.ndarray, lmask: np.ndarra
     one chunk of blocks after another (:func:`block_strips`; up to CHUNKS_PER_THREAD per
     thread, each at least MIN_CHUNK_BLOCKS blocks):
     the calling thread and ``threads - 1`` of ``pool``'s (a ThreadPoolExecutor with that many
-    workers; None: a pool of its own).
+    workers; None: a pool of its own). ``keep_unmatched=False``: ``disp`` is -1 wherever
+    ``state`` is BORDER or INVALID too (what a caller that does not fill them would do next,
+    here chunk by chunk on the threads).
     """
     H, W = left.shape
     npix = (2 * rx + 1) * (2 * ry + 1)
@@ -102,7 +105,8 @@ def match_image_aggregated(left: np.ndarray, right: np.ndarray, lmask: np.ndarra
     if textured is None:
         textured = np.ones((H, W), np.bool_)
     images = (left, right, lmask, rmask, np.asarray(textured, np.bool_))
-    params = (dmin, nd, rx, ry, q, _scaled_penalties(occ, rew, slant, npix, q))
+    params = (dmin, nd, rx, ry, q, _scaled_penalties(occ, rew, slant, npix, q),
+              keep_unmatched)
     threads = max(1, threads)
     per_thread = -(-H // LANES) // (threads * MIN_CHUNK_BLOCKS)  # whole chunks per thread
     chunks = block_strips(H, threads * max(1, min(CHUNKS_PER_THREAD, per_thread)))
@@ -141,7 +145,7 @@ def _match_chunks(todo, images: tuple, params: tuple, out: dict) -> None:
     window's ``ry`` more each side) and writes only the chunk's rows of ``out``, so chunks
     can run side by side and give the maps of one pass over the image."""
     left, right, lmask, rmask, textured = images
-    dmin, nd, rx, ry, q, pens = params
+    dmin, nd, rx, ry, q, pens, keep_unmatched = params
     work = _lane_work(left.shape[1], nd, rx, ry)
     for first, stop in todo:  # a list iterator: its next() is atomic under the GIL
         rows = slice(first, stop)
@@ -153,6 +157,8 @@ def _match_chunks(todo, images: tuple, params: tuple, out: dict) -> None:
         setup = block_setup(left[rows], right[rows], lmask[rows], rmask[rows], textured[rows],
                             dmin, nd, pens, mine["disp"], mine["state"])
         _match_blocks(range(len(setup[4])), bounds, setup, params, mine, work)
+        if not keep_unmatched:
+            np.copyto(mine["disp"], -1, where=mine["state"] >= BORDER)
 
 
 def _rows_transposed(grey: np.ndarray, mask: np.ndarray, ry: int, first: int, stop: int,
@@ -184,7 +190,7 @@ def _match_blocks(blocks: range, bounds: np.ndarray, setup: tuple, params: tuple
     """Match the blocks of rows ``blocks`` (indices; the kernels release the GIL), set up by
     :func:`.blocks.block_setup` (``setup``), with the thread's work arrays ``work``
     (:func:`_lane_work`)."""
-    dmin, nd, rx, ry, q, pens = params
+    dmin, nd, rx, ry, q, pens, _ = params
     disp, state = out["disp"], out["state"]
     geos, pen_ls, rews, pen_rs, ranges = setup
     col_lims_ring_d, phi, rbest, run, ints, sloc = work

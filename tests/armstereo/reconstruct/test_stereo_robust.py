@@ -22,6 +22,7 @@ from armstereo.reconstruct.birchfield.aggregate import (
     fill_outside,
     match_image_aggregated,
 )
+from armstereo.reconstruct.birchfield.dp_pruned import BORDER
 from armstereo.reconstruct.birchfield.lanes import LANES
 from armstereo.reconstruct.birchfield.matcher import match_image
 from armstereo.reconstruct.stereo import PAPER_OPTIONS, birchfield
@@ -96,6 +97,19 @@ def test_chunks_taken_by_threads_give_the_one_pass_maps(monkeypatch, min_blocks)
         got = match_image_aggregated(*args, slant=20, textured=textured, threads=threads)
         for key in one:
             np.testing.assert_array_equal(one[key], got[key])
+
+
+def test_unmatched_pixels_removed_on_the_threads_are_those_the_states_name():
+    left, right = box_pair(3, 10, (40, 90, 15, 60), seed=5)
+    lmask = np.ones(left.shape, bool)
+    lmask[:, :6] = False
+    args = (left, right, lmask, np.ones(left.shape, bool), 0, 16, 50, 10, 0, 1)
+    dense = match_image_aggregated(*args, slant=20, threads=2)
+    sparse = match_image_aggregated(*args, slant=20, threads=2, keep_unmatched=False)
+    unmatched = dense["state"] >= BORDER
+    assert unmatched.any() and (dense["disp"][unmatched] >= 0).any()  # filled, before
+    np.testing.assert_array_equal(sparse["disp"], np.where(unmatched, -1, dense["disp"]))
+    np.testing.assert_array_equal(sparse["state"], dense["state"])
 
 
 def test_cost_divisor_keeps_rows_exact_in_float32():
