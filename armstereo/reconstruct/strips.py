@@ -1,10 +1,12 @@
 """Row strips of an image processed side by side on a few threads.
 
-The steps after matching are mostly row-local (a window a few rows high at most): each strip
-of rows reads the rows its windows reach beyond it (a halo) and writes only its own rows, so
-strips can run at the same time and give the same map as one pass over the image. OpenCV
-and most numpy operations on whole rows release the GIL, so Python threads are enough;
-they live for one call, like the matcher's (:mod:`.birchfield.matcher`).
+The steps before and after matching are mostly row-local (a window a few rows high at most):
+each strip of rows reads the rows its windows reach beyond it (a halo) and writes only its
+own rows, so strips can run at the same time and give the same map as one pass over the
+image. OpenCV and most numpy operations on whole rows release the GIL, so Python threads are
+enough, but only while each call has real work: a step made of dozens of small calls keeps
+the threads waiting on each other between them (such a step is better one kernel, as the
+consensus median's counts are). The threads live for one call, like the matcher's.
 """
 
 from __future__ import annotations
