@@ -409,7 +409,7 @@ def _input_rows(first: int, stop: int, left: np.ndarray, right: np.ndarray,
             if flat is not None:
                 np.less(strength, flat_below, out=flat[rows])
             if textured is not None:
-                np.greater_equal(strength, reward_from, out=textured[rows])  # as _rewarded
+                textured[rows] = _rewarded(strength, reward_from)  # the rule in one place
 
 
 def _masked_map(pool, strips, gl, gr, idx, dmin, *, fast, median, flat, columns, hidden):
