@@ -41,7 +41,7 @@ try:  # POSIX: an advisory lock keeps two writers off one file
 except ImportError:  # pragma: no cover - Windows: no lock, the last writer wins
     fcntl = None
 
-from armstereo import __version__
+from armstereo import __version__, camera_settings
 from armstereo.camera_model import Intrinsics
 from armstereo.errors import ConfigError, RecordingError
 from armstereo.frame import Frame
@@ -161,7 +161,8 @@ class RecordingWriter:
         ``q`` are the actual joints (rad) at exposure, ``T_base_flange`` their forward
         kinematics and ``T_flange_camera`` the mount; all share ``frame.timestamp_ns``.
         ``controller_T_base_flange``: the flange pose the arm's controller reported for the same
-        joints (kept in the view event, for the FK cross-check), if the arm reports one.
+        joints (kept in the view event, for the FK cross-check), if the arm reports one. What
+        the camera reported about the frame (settings, device time stamp) joins the view event.
         """
         view = _check_index("view", view)
         t_ns = _check_time(frame.timestamp_ns)
@@ -188,7 +189,8 @@ class RecordingWriter:
         tf_msg = _frames_message(T_base_flange, T_flange_camera, t_ns)
         joints = {"timestamp_ns": t_ns, "view": view, "names": names, "positions": q.tolist()}
         event = {"event": "view", "view": view, "timestamp_ns": t_ns,
-                 "settle_s": _check_number("settle_s", settle_s)}
+                 "settle_s": _check_number("settle_s", settle_s),
+                 **camera_settings.view_event_fields(frame)}
         if controller_T_base_flange is not None:
             event["controller_T_base_tool0"] = as_rigid(
                 controller_T_base_flange, "controller T_base_flange",
