@@ -56,7 +56,8 @@ def choose(available: tuple[str, ...] | list[str], wanted: str | None, camera: s
 
 def to_image(data: np.ndarray, width: int, height: int, pixel_format: str) -> np.ndarray:
     """The buffer ``data`` (the payload as delivered, any integer dtype) of a ``width`` x
-    ``height`` frame in ``pixel_format`` as uint8: (H, W) grey or (H, W, 3) BGR. Raises
+    ``height`` frame in ``pixel_format`` as uint8: (H, W) grey or (H, W, 3) BGR, never sharing
+    the buffer's memory. Raises
     HardwareError when the payload does not hold such a frame, ConfigError for a format that
     is not supported."""
     if pixel_format in _MONO:
@@ -71,7 +72,7 @@ def to_image(data: np.ndarray, width: int, height: int, pixel_format: str) -> np
         img = _samples(data, width, height, channels, 8)
         code = (cv2.COLOR_RGB2BGR if channels == 3 else cv2.COLOR_RGBA2BGR) if rgb \
             else (None if channels == 3 else cv2.COLOR_BGRA2BGR)
-        return np.ascontiguousarray(img) if code is None else cv2.cvtColor(img, code)
+        return np.array(img, copy=True) if code is None else cv2.cvtColor(img, code)
     raise ConfigError(f"pixel format {pixel_format!r} is not supported (supported: "
                       f"{', '.join(SUPPORTED)})")
 
@@ -93,6 +94,8 @@ def _samples(data: np.ndarray, width: int, height: int, channels: int,
 
 
 def _to_8bit(img: np.ndarray, bits: int) -> np.ndarray:
+    """8-bit samples in memory of their own: the producer reuses its buffer once it is queued
+    again, so nothing returned may be a view of it."""
     if bits == 8:
-        return np.ascontiguousarray(img)
+        return np.array(img, copy=True)
     return (img >> (bits - 8)).astype(np.uint8)

@@ -155,9 +155,10 @@ def frame_report(rs, frame) -> tuple[dict[str, float], int | None, int | None]:
 def to_intrinsics(rs, intr) -> tuple[Intrinsics, str]:
     """The SDK's ``rs.intrinsics`` as :class:`Intrinsics` (OpenCV's model) and a note on the
     conversion. Brown-Conrady is OpenCV's model (same coefficient order k1, k2, p1, p2, k3).
-    Inverse Brown-Conrady maps distorted to ideal points; OpenCV's forward coefficients are
-    fitted to it by least squares over the image (the fit's worst residual is in the note).
-    Other models (fisheye ones) raise ConfigError: give a calibrated mount (--mount)."""
+    For Inverse Brown-Conrady (the D400 colour sensors' model) OpenCV's forward coefficients
+    are fitted by least squares to the SDK's own deprojection of a grid of pixels, so OpenCV
+    maps rays to the pixels the SDK says they come from (the fit's worst residual is in the
+    note). Other models (fisheye ones) raise ConfigError: give a calibrated mount (--mount)."""
     K = np.array([[intr.fx, 0.0, intr.ppx], [0.0, intr.fy, intr.ppy], [0.0, 0.0, 1.0]])
     coeffs = np.array(list(intr.coeffs)[:5], dtype=float)
     model = intr.model
@@ -166,7 +167,12 @@ def to_intrinsics(rs, intr) -> tuple[Intrinsics, str]:
     if model in (rs.distortion.brown_conrady, rs.distortion.modified_brown_conrady):
         return Intrinsics(intr.width, intr.height, K, coeffs), f"{model.name} coefficients"
     if model == rs.distortion.inverse_brown_conrady:
-        dist, worst_px = fit_forward_distortion(K, coeffs, intr.width, intr.height)
+        u, v = np.meshgrid(np.linspace(0, intr.width - 1, DISTORTION_FIT_GRID),
+                           np.linspace(0, intr.height - 1, DISTORTION_FIT_GRID))
+        pixels = np.stack([u.ravel(), v.ravel()], axis=1)
+        rays = np.array([rs.rs2_deproject_pixel_to_point(intr, [float(a), float(b)], 1.0)
+                         for a, b in pixels])
+        dist, worst_px = fit_forward_distortion(K, rays[:, :2] / rays[:, 2:], pixels)
         return Intrinsics(intr.width, intr.height, K, dist), \
             f"inverse_brown_conrady fitted to OpenCV's model (worst {worst_px:.3f} px)"
     raise ConfigError(f"the camera's colour intrinsics use the {model.name} distortion model, "
@@ -175,31 +181,27 @@ def to_intrinsics(rs, intr) -> tuple[Intrinsics, str]:
 
 
 def _brown(x: np.ndarray, y: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Brown-Conrady with coefficients (k1, k2, p1, p2, k3) on normalised points."""
+    """OpenCV's distortion with coefficients (k1, k2, p1, p2, k3) on normalised points."""
     r2 = x * x + y * y
     f = 1 + c[0] * r2 + c[1] * r2 ** 2 + c[4] * r2 ** 3
     return (x * f + 2 * c[2] * x * y + c[3] * (r2 + 2 * x * x),
             y * f + 2 * c[3] * x * y + c[2] * (r2 + 2 * y * y))
 
 
-def fit_forward_distortion(K: np.ndarray, inverse: np.ndarray, width: int,
-                           height: int) -> tuple[np.ndarray, float]:
-    """OpenCV distortion (k1, k2, p1, p2, k3) that best maps the ideal points of an inverse
-    Brown-Conrady model back to its distorted pixels, and the worst residual (px) over the
-    image. The forward model's displacement is linear in its coefficients, so one least-squares
-    solve over a grid of pixels fits it."""
-    u, v = np.meshgrid(np.linspace(0, width - 1, DISTORTION_FIT_GRID),
-                       np.linspace(0, height - 1, DISTORTION_FIT_GRID))
-    xd = ((u - K[0, 2]) / K[0, 0]).ravel()
-    yd = ((v - K[1, 2]) / K[1, 1]).ravel()
-    xu, yu = _brown(xd, yd, inverse)  # inverse model: distorted -> ideal
+def fit_forward_distortion(K: np.ndarray, ideal: np.ndarray,
+                           pixels: np.ndarray) -> tuple[np.ndarray, float]:
+    """OpenCV distortion (k1, k2, p1, p2, k3) mapping the normalised ``ideal`` points (N, 2)
+    to ``pixels`` (N, 2) through ``K``, and its worst residual (px). The model's displacement
+    is linear in its coefficients, so one least-squares solve fits it."""
+    xd = (pixels[:, 0] - K[0, 2]) / K[0, 0]
+    yd = (pixels[:, 1] - K[1, 2]) / K[1, 1]
+    xu, yu = ideal[:, 0], ideal[:, 1]
     r2 = xu * xu + yu * yu
-    # forward: xd - xu = xu (k1 r2 + k2 r4 + k3 r6) + 2 p1 xu yu + p2 (r2 + 2 xu^2), same for y
+    # xd - xu = xu (k1 r2 + k2 r4 + k3 r6) + 2 p1 xu yu + p2 (r2 + 2 xu^2), and alike for y
     ax = np.stack([xu * r2, xu * r2 ** 2, 2 * xu * yu, r2 + 2 * xu * xu, xu * r2 ** 3], axis=1)
     ay = np.stack([yu * r2, yu * r2 ** 2, r2 + 2 * yu * yu, 2 * xu * yu, yu * r2 ** 3], axis=1)
-    A = np.vstack([ax, ay])
-    b = np.concatenate([xd - xu, yd - yu])
-    dist = np.linalg.lstsq(A, b, rcond=None)[0]
+    dist = np.linalg.lstsq(np.vstack([ax, ay]), np.concatenate([xd - xu, yd - yu]),
+                           rcond=None)[0]
     fx, fy = _brown(xu, yu, dist)
     worst = float(np.max(np.hypot((fx - xd) * K[0, 0], (fy - yd) * K[1, 1])))
     return dist, worst

@@ -27,10 +27,10 @@ def option_range(rs, lo: float, hi: float, step: float, default: float):
 
 
 def software_camera(intr: Intrinsics, *, fps: int = 30, serial: str = SERIAL,
-                    model: str = "brown_conrady", writable: bool = True):
+                    model: str = "brown_conrady", locked: bool = False):
     """(device, colour sensor, profile) of a software device with a BGR8 colour stream of
     ``intr``'s size and calibration, and exposure, gain, white balance and their auto modes
-    as options (writable, as on a live camera)."""
+    as writable options, as on a live camera (auto modes on unless ``locked``)."""
     rs = load_rs()
     dev = rs.software_device()
     dev.register_info(rs.camera_info.name, NAME)
@@ -53,20 +53,23 @@ def software_camera(intr: Intrinsics, *, fps: int = 30, serial: str = SERIAL,
                      (rs.option.white_balance, (2800.0, 6500.0, 10.0, 4600.0)),
                      (rs.option.enable_auto_exposure, (0.0, 1.0, 1.0, 1.0)),
                      (rs.option.enable_auto_white_balance, (0.0, 1.0, 1.0, 1.0))):
-        sensor.add_option(opt, option_range(rs, *rng), writable)
-    sensor.set_option(rs.option.enable_auto_exposure, 1.0) if writable else None
+        sensor.add_option(opt, option_range(rs, *rng), True)
+    for auto in (rs.option.enable_auto_exposure, rs.option.enable_auto_white_balance):
+        sensor.set_option(auto, 0.0 if locked else 1.0)
     return dev, sensor, profile
 
 
 def push(rs, sensor, profile, image: np.ndarray, k: int, settings: dict | None = None,
-         t0_ms: float = START_MS) -> None:
-    """Hand frame ``k`` (BGR uint8) to the software sensor, with its metadata."""
+         t0_ms: float = START_MS, host_ms: float | None = None) -> None:
+    """Hand frame ``k`` (BGR uint8) to the software sensor, with its metadata; time stamped
+    on the device's own clock, or with ``host_ms`` in the host-synchronised (global) domain."""
     h, w = image.shape[:2]
     f = rs.software_video_frame()
     f.pixels = np.ascontiguousarray(image)
     f.stride, f.bpp = w * 3, 3
-    f.timestamp = t0_ms + k * FRAME_PERIOD_MS
-    f.domain = rs.timestamp_domain.hardware_clock
+    f.timestamp = t0_ms + k * FRAME_PERIOD_MS if host_ms is None else host_ms
+    f.domain = rs.timestamp_domain.hardware_clock if host_ms is None \
+        else rs.timestamp_domain.global_time
     f.frame_number = k
     f.profile = profile.as_video_stream_profile()
     md = rs.frame_metadata_value
@@ -80,13 +83,19 @@ def push(rs, sensor, profile, image: np.ndarray, k: int, settings: dict | None =
 
 def make_recording(path: Path, images: list[np.ndarray], intr: Intrinsics, *,
                    settings: list[dict] | None = None, serial: str = SERIAL,
-                   model: str = "brown_conrady") -> Path:
+                   model: str = "brown_conrady", locked: bool = True) -> Path:
     """Record ``images`` (BGR uint8, ``intr``'s size) as a RealSense recording at ``path``
-    (the suffix the SDK writes: ``.db3`` for SDK >= 2.56). Returns the file written."""
+    with the suffix the SDK writes (``.db3``, or ``.bag`` for older SDKs); per-frame
+    ``settings`` as :func:`push` takes them; ``locked``: auto exposure and auto white balance
+    were off. Returns the file written."""
     rs = load_rs()
-    path = Path(path)
-    dev, sensor, profile = software_camera(intr, serial=serial, model=model)
-    recorder = rs.recorder(str(path), dev)
+    dev, sensor, profile = software_camera(intr, serial=serial, model=model, locked=locked)
+    try:
+        path = Path(path).with_suffix(".db3")
+        recorder = rs.recorder(str(path), dev)
+    except RuntimeError:  # SDKs before rosbag2 record ROS 1 bags
+        path = Path(path).with_suffix(".bag")
+        recorder = rs.recorder(str(path), dev)
     queue = rs.frame_queue(len(images) + 1, keep_frames=True)
     sensor.open(profile)
     sensor.start(queue)
