@@ -116,6 +116,11 @@ class BagWriter:
         self.counts[topic] = self.counts.get(topic, 0) + 1
 
     def _move_into_place(self) -> None:
+        # rosbags names itself as the distribution; ros2 bag info shows the one we wrote for.
+        meta = self._staged / "metadata.yaml"
+        text = meta.read_text()
+        meta.write_text(text.replace("\n  ros_distro: rosbags\n",
+                                     f"\n  ros_distro: {self.distro.name}\n"))
         if self.path.exists():  # only a bag folder gets here (check_destination)
             shutil.rmtree(self.path)
         os.replace(self._staged, self.path)

@@ -15,6 +15,7 @@ import logging
 from dataclasses import dataclass
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from armstereo import validate
@@ -99,7 +100,11 @@ def import_bag(bag_path: str | Path, out: str | Path, options: ImportOptions) ->
         records = _records(bag, topics, contents, poses, views, options)
         problems = bag.problems() + notes
     metadata = _metadata(bag, options, topics, poses.name, camera, model, contents)
+    session = _calibration_session(out, records, metadata, options, model)
     write_recording(out, records, pairs, metadata, calibration_ns=_calibration_time(contents))
+    if session is not None:
+        path, seen, meta = session
+        write_recording(path, seen, [], meta)
     report = {"bag": str(bag_path), "out": str(out), "pose_source": poses.name,
               "camera_frame": camera, "views": len(records), "pairs": [
                   {"pair": p[0], "left_view": p[1], "right_view": p[2],
@@ -107,7 +112,8 @@ def import_bag(bag_path: str | Path, out: str | Path, options: ImportOptions) ->
               "from_events": bool(contents.events and options.use_events),
               "calibration": None, "warnings": problems}
     if options.board is not None:
-        report["calibration"] = _calibration(out, records, metadata, options, model)
+        report["calibration"] = ({"out": str(session[0]), "views": len(session[1])}
+                                 if session else {"out": None, "views": 0})
     return report
 
 
@@ -246,8 +252,15 @@ def _records(bag: BagReader, topics: Topics, c: Contents, poses, views: list[dic
             joints=q[k] if q_ok[k] else None, settle_s=v["settle_s"],
             controller_T_base_flange=v["controller"], depth=depth_at.get(im.stamp_ns),
             sees_board=options.board is not None
-            and detect_board(images[im.number], options.board) is not None))
+            and _sees_board(images[im.number], options.board)))
     return out
+
+
+def _sees_board(image: np.ndarray, board: Board) -> bool:
+    try:
+        return detect_board(image, board) is not None
+    except cv2.error:  # OpenCV's chessboard finder fails on very small images: no board
+        return False
 
 
 def _calibration_time(c: Contents) -> int | None:
@@ -282,15 +295,16 @@ def _metadata(bag: BagReader, options: ImportOptions, topics: Topics, source: st
     return meta
 
 
-def _calibration(out: Path, records: list[ViewRecord], metadata: dict[str, str],
-                 options: ImportOptions, model: ArmModel | None) -> dict:
+def _calibration_session(out: Path, records: list[ViewRecord], metadata: dict[str, str],
+                         options: ImportOptions, model: ArmModel | None):
+    """(path, views, metadata) of the calibration recording, None if no view sees the board;
+    ConfigError/RecordingError, before anything is written, when it cannot be made."""
     seen = [r for r in records if r.sees_board]
-    path = options.calibration_out or out.with_name(f"{out.stem}_calibration.mcap")
-    if not seen:
-        return {"out": None, "views": 0}
+    if options.board is None or not seen:
+        return None
     if "robot" not in metadata:
-        raise ConfigError("--board: the calibration recording needs the arm model (--robot) "
-                          "its flange poses are computed with")
+        raise ConfigError(f"{len(seen)} view(s) see the board, but the calibration recording "
+                          "needs the arm model its flange poses are computed with: give --robot")
     missing = [r.index for r in seen if r.joints is None]
     if missing:
         raise RecordingError(f"views {missing} see the board but have no joint states; "
@@ -299,5 +313,5 @@ def _calibration(out: Path, records: list[ViewRecord], metadata: dict[str, str],
     meta.update(calibration_metadata(options.board, len(seen)))
     if "mount_toml" not in meta and model is not None:
         meta["mount_toml"] = model.mount.source
-    write_recording(path, seen, [], meta)
-    return {"out": str(path), "views": len(seen)}
+    path = options.calibration_out or out.with_name(f"{out.stem}_calibration.mcap")
+    return path, seen, meta
