@@ -108,9 +108,11 @@ def _messages(path: Path, warnings: list[str]):
     """(schema, channel, message) in log-time order; a recording cut short (no index, a
     damaged end) is exported up to where it can be read, with a warning."""
     with open(path, "rb") as f:
-        it = make_reader(f).iter_messages(log_time_order=True)
+        it = None
         while True:
             try:
+                if it is None:
+                    it = make_reader(f).iter_messages(log_time_order=True)
                 item = next(it)
             except StopIteration:
                 return

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from mcap.writer import CompressionType
 from mcap_ros2.writer import Writer
 
 from armstereo.ros2 import types as R
@@ -39,10 +40,13 @@ class Tiny:
     def on(self, topic: str) -> list[Record]:
         return [r for r in self.records if r.topic == topic]
 
-    def write(self, path: Path) -> Path:
+    def write(self, path: Path, *, plain: bool = False) -> Path:
+        """Write the bag; ``plain``: no chunk compression and no CRCs, so that damaged bytes
+        reach the message decoder instead of failing a checksum."""
         store = R.typestore("humble")
         with open(path, "wb") as f:
-            w = Writer(f)
+            w = Writer(f, compression=CompressionType.NONE, enable_crcs=False) if plain \
+                else Writer(f)
             schemas = {}
             for r in sorted(self.records, key=lambda r: r.log_ns):
                 if r.msgtype not in schemas:
