@@ -71,24 +71,30 @@ def samples(store) -> dict[str, tuple[str, object]]:
     }
 
 
+def _codec_times(store, msgtype: str, msg, repeats: int, n: int) -> list[float]:
+    """Median s per message: rosbags encode, mcap-ros2 encode, rosbags decode, mcap-ros2
+    decode, alternating per repeat."""
+    text = store.generate_msgdef(msgtype, ros_version=2)[0]
+    encode = serialize_dynamic(msgtype, text)[msgtype]
+    decode = generate_dynamic(msgtype, text)[msgtype]
+    as_dict = _as_dict(msg)
+    raw = bytes(store.serialize_cdr(msg, msgtype))
+    assert bytes(encode(as_dict)) == raw  # both write the same bytes
+    steps = [lambda: store.serialize_cdr(msg, msgtype), lambda: encode(as_dict),
+             lambda: store.deserialize_cdr(raw, msgtype), lambda: decode(raw)]
+    times: list[list[float]] = [[] for _ in steps]
+    for _ in range(repeats):
+        for k, step in enumerate(steps):
+            times[k].append(_timed(step, n))
+    return [statistics.median(t) for t in times]
+
+
 def codec_rows(repeats: int, quick: bool) -> list[tuple]:
     store = R.typestore("humble")
     rows = []
     for label, (msgtype, msg) in samples(store).items():
-        text = store.generate_msgdef(msgtype, ros_version=2)[0]
-        encode = serialize_dynamic(msgtype, text)[msgtype]
-        decode = generate_dynamic(msgtype, text)[msgtype]
-        as_dict = _as_dict(msg)
-        raw = bytes(store.serialize_cdr(msg, msgtype))
-        assert bytes(encode(as_dict)) == raw  # both write the same bytes
         n = 20 if quick else (200 if "Image" not in label else 50)
-        times = {k: [] for k in ("rb_enc", "m2_enc", "rb_dec", "m2_dec")}
-        for _ in range(repeats):
-            times["rb_enc"].append(_timed(lambda: store.serialize_cdr(msg, msgtype), n))
-            times["m2_enc"].append(_timed(lambda: encode(as_dict), n))
-            times["rb_dec"].append(_timed(lambda: store.deserialize_cdr(raw, msgtype), n))
-            times["m2_dec"].append(_timed(lambda: decode(raw), n))
-        rows.append((label, *(statistics.median(v) for v in times.values())))
+        rows.append((label, *_codec_times(store, msgtype, msg, repeats, n)))
     return rows
 
 

@@ -101,7 +101,15 @@ def export_recording(src: str | Path, out: str | Path,
     topics = {t: {"type": bag.types[t], "messages": n} for t, n in bag.counts.items()}
     return {"bag": str(out), "kind": kind, "distro": options.distro, "storage": "mcap",
             "source": str(src), "topics": topics, "skipped": dict(ex.skipped),
-            "warnings": list(rec.warnings) + ex.warnings}
+            "warnings": _reader_warnings(rec, kind) + ex.warnings}
+
+
+def _reader_warnings(rec: Recording, kind: str) -> list[str]:
+    """What the recording reader found wrong; for a fusion or scene MCAP only what it could
+    not read (its views and calibration are not that file's business)."""
+    if kind in ("fusion", "scene"):
+        return list(rec.lost)
+    return [w for w in rec.warnings if "on unknown topic" not in w]
 
 
 def _messages(path: Path, warnings: list[str]):

@@ -181,13 +181,13 @@ def _pose_source(c: Contents, options: ImportOptions, camera: str, model: ArmMod
 def _at_rest(c: Contents, poses, options: ImportOptions):
     stamps = np.array([im.stamp_ns for im in c.images], dtype=np.int64)
     still = still_mask(stamps, poses, options.rest)
-    T_bf, T_fc, valid = poses.at(stamps)
+    T_bf, T_fc, _ = poses.at(stamps)
     T_cam = T_bf @ T_fc
     chosen = rest_views(stamps, T_cam, still, options.rest)
-    views = [{"view": k, "image": c.images[i], "settle_s": options.rest.window_s / 2,
-              "controller": None} for k, i in enumerate(chosen)]
+    views = [{"view": k, "image": c.images[i], "settle_s": float(settle), "controller": None}
+             for k, (i, settle) in enumerate(chosen)]
     intr = [c.intrinsics_at(v["image"].stamp_ns) for v in views]
-    choices, notes = choose_pairs([T_cam[i] for i in chosen], intr, options.baseline,
+    choices, notes = choose_pairs([T_cam[i] for i, _ in chosen], intr, options.baseline,
                                   options.baseline_tolerance)
     pairs = [(n, p.left, p.right, options.baseline if options.baseline else p.achieved_m,
               p.achieved_m, p.direction, None) for n, p in enumerate(choices)]

@@ -62,15 +62,19 @@ def _angles(Ra: np.ndarray, Rb: np.ndarray) -> np.ndarray:
 
 
 def rest_views(stamps: np.ndarray, T_cams: np.ndarray, still: np.ndarray,
-               options: RestOptions) -> list[int]:
-    """One image index per rest: the middle one of each run of consecutive still images at
-    one place (a run splits where the camera is more than twice the tolerance away)."""
-    views, run = [], []
+               options: RestOptions) -> list[tuple[int, float]]:
+    """(image index, settle s) per rest: the middle image of each run of consecutive still
+    images at one place (a run splits where the camera is more than twice the tolerance
+    away), and how long the camera had been still when it was shot (at least half the
+    window before the run's first image)."""
+    views: list[tuple[int, float]] = []
+    run: list[int] = []
 
     def close_run() -> None:
         if run:
             middle = (stamps[run[0]] + stamps[run[-1]]) / 2
-            views.append(min(run, key=lambda k: abs(stamps[k] - middle)))
+            k = min(run, key=lambda i: abs(stamps[i] - middle))
+            views.append((k, (stamps[k] - stamps[run[0]]) / 1e9 + options.window_s / 2))
             run.clear()
 
     for k in range(len(stamps)):

@@ -212,7 +212,7 @@ def test_scene_analysis_exports_clouds_and_markers(tmp_path):
     analysis = analyze_scene(cloud)
     src = write_scene_mcap(tmp_path / "scene.mcap", analysis, cloud)
     report = export_recording(src, tmp_path / "bag")
-    assert report["kind"] == "scene" and not report["skipped"]
+    assert report["kind"] == "scene" and not report["skipped"] and not report["warnings"]
     bag = read_bag(tmp_path / "bag")
     xyz, _ = _cloud(bag.decoded("/points")[0])
     assert np.allclose(xyz, cloud.points.astype(np.float32))
@@ -243,7 +243,7 @@ def test_fusion_exports_the_mesh_as_a_triangle_list(tmp_path):
     src = write_fusion_mcap(tmp_path / "fusion.mcap", mesh, mesh.vertices[:5], mesh.colors[:5],
                             views, {"voxel_m": "0.002"})
     report = export_recording(src, tmp_path / "bag")
-    assert report["kind"] == "fusion"
+    assert report["kind"] == "fusion" and not report["warnings"]
     bag = read_bag(tmp_path / "bag")
     (marker,) = bag.decoded("/fusion/mesh")
     assert marker.type == 11 and marker.ns == "mesh" and marker.header.frame_id == "base"
