@@ -8,6 +8,7 @@ import os
 from pathlib import Path
 
 from armstereo.cli import args as args_
+from armstereo.errors import ConfigError
 
 
 def bag_path(text: str) -> Path:
@@ -94,9 +95,13 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     check_output(out, args.force)
     calib = Path(args.calibration_out) if args.calibration_out else None
+    outputs = [out]
     if args.board is not None:
-        check_output(calib or out.with_name(f"{out.stem}_calibration.mcap"), args.force,
-                     "--calibration-out")
+        outputs.append(calib or out.with_name(f"{out.stem}_calibration.mcap"))
+        check_output(outputs[-1], args.force, "--calibration-out")
+    resolved = [p.resolve() for p in outputs]
+    if args.bag.resolve() in resolved or len(set(resolved)) < len(resolved):
+        raise ConfigError("the output recordings must differ from each other and from the bag")
     options = ImportOptions(
         image_topic=args.image_topic, camera_info_topic=args.camera_info_topic,
         tf_topic=args.tf_topic, tf_static_topic=args.tf_static_topic,

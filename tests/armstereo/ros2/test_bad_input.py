@@ -167,6 +167,15 @@ def test_files_that_are_not_bags(capsys, tmp_path, content, suffix, code, words)
     _one_line(err, *words)
 
 
+def test_the_output_cannot_be_the_bag(capsys, tmp_path):
+    path = T.tiny().write(tmp_path / "bag.mcap")
+    code, _, err = run(capsys, "import", path, "--image-topic", T.IMAGE, "--out", path,
+                       "--force")
+    assert code == 2
+    _one_line(err, "differ from each other and from the bag")
+    assert path.stat().st_size > 1000
+
+
 def test_a_folder_without_metadata_is_not_a_bag(capsys, tmp_path):
     code, _, err = run(capsys, "import", tmp_path, "--image-topic", T.IMAGE, "--out",
                        tmp_path / "r.mcap")

@@ -164,6 +164,16 @@ def test_board_views_make_a_calibration_recording_calibrate_takes(calibration_ba
     found = CameraMount.load(tmp_path / "m.toml")
     e = truth_error(found, session.true_mount)
     assert e["translation_m"] < 0.0005 and e["rotation_deg"] < 0.05, e
+    # the calibration recording exported and imported again is the same session
+    export_recording(calib, tmp_path / "calib_bag")
+    again = tmp_path / "again.mcap"
+    report = import_bag(tmp_path / "calib_bag", again, ImportOptions(image_topic="/camera/image"))
+    assert report["from_events"] and report["views"] == 8
+    code, _, err = run(capsys, "calibrate", "--from", again, "--out", tmp_path / "m2.toml")
+    assert code == 0, err
+    same = CameraMount.load(tmp_path / "m2.toml")
+    assert np.abs(same.T_flange_camera - found.T_flange_camera).max() < 1e-12
+    assert np.abs(same.intrinsics.K - found.intrinsics.K).max() < 1e-9
 
 
 def test_board_views_without_robot_name_it_and_write_nothing(calibration_bag, tmp_path,
