@@ -11,8 +11,8 @@ Names used on the command line: arms ``mock`` and ``ur``; cameras ``mock``,
 ``opencv:<index, path or pipeline>``, ``genicam:<serial or index>`` and ``realsense:<serial>``.
 The last two are optional extras (``pip install 'armstereo[genicam]'``, ``[realsense]``):
 their config modules import nothing of the SDK, so their flags always show; choosing one whose
-extra is missing is a one-line ConfigError (:func:`require_extra`). Each camera backend may name
-a ``lister``, the function ``armstereo cameras`` calls to say what it can see.
+extra is missing is a one-line ConfigError (:func:`require_backend_extra`). Each camera backend
+may name a ``lister``, the function ``armstereo cameras`` calls to say what it can see.
 """
 
 from __future__ import annotations
@@ -43,8 +43,7 @@ class Backend:
     config_module: str
     config: str
     description: str
-    # Optional extras: the modules the driver imports, and the pip extra that installs them.
-    requires: tuple[str, ...] = ()
+    # The optional extra (a key of EXTRAS) that installs what the driver imports; "" none.
     extra: str = ""
     # "module:function" listing the devices this backend can see (``armstereo cameras``).
     lister: str = ""
@@ -68,13 +67,12 @@ CAMERAS: dict[str, Backend] = {
     "genicam": Backend("camera", "genicam", "drivers.genicam.camera", "GenICamCamera",
                        "drivers.genicam.config", "GenICamCameraConfig",
                        "GigE Vision / USB3 Vision camera through a GenTL producer "
-                       "(genicam:<serial or index>)", requires=("harvesters",),
-                       extra="genicam", lister="drivers.genicam.discovery:list_cameras",
+                       "(genicam:<serial or index>)", extra="genicam",
+                       lister="drivers.genicam.discovery:list_cameras",
                        device="required"),
     "realsense": Backend("camera", "realsense", "drivers.realsense.camera", "RealSenseCamera",
                          "drivers.realsense.config", "RealSenseCameraConfig",
-                         "Intel RealSense colour camera (realsense:<serial>)",
-                         requires=("pyrealsense2",), extra="realsense",
+                         "Intel RealSense colour camera (realsense:<serial>)", extra="realsense",
                          lister="drivers.realsense.discovery:list_cameras", device="required"),
 }
 CAMERA_SPECS = "mock, opencv:<index or path>, genicam:<serial or index>, realsense:<serial>"
@@ -105,10 +103,11 @@ def camera_backend(spec: str) -> tuple[Backend, str]:
 
 def missing_extra(backend: Backend) -> str | None:
     """The one-line reason ``backend`` cannot run here (its optional extra is not installed),
-    or None. Looks the modules up without importing them."""
+    or None. Looks the modules up without importing them (a camera SDK is large, and its
+    import may need more than the module: see drivers/realsense/sdk.py)."""
     import importlib.util
 
-    for module in backend.requires:
+    for module in EXTRAS[backend.extra].modules if backend.extra else ():
         try:
             found = importlib.util.find_spec(module) is not None
         except (ImportError, ValueError):
@@ -119,7 +118,7 @@ def missing_extra(backend: Backend) -> str | None:
     return None
 
 
-def require_extra(backend: Backend) -> None:
+def require_backend_extra(backend: Backend) -> None:
     """ConfigError (exit 2) when ``backend``'s optional extra is not installed."""
     problem = missing_extra(backend)
     if problem:
@@ -132,7 +131,7 @@ def list_cameras(name: str, options: dict[str, Any]) -> list[dict]:
     ``model``, ``status``, ``modes``, ``note``. ConfigError when the backend cannot look (its
     extra or producer missing); the mock lists its one simulated camera."""
     backend = CAMERAS[name]
-    require_extra(backend)
+    require_backend_extra(backend)
     if not backend.lister:
         return []
     module, _, function = backend.lister.partition(":")
@@ -163,7 +162,7 @@ def build_camera(spec: str, config: Any, model: ArmModel, arm: Arm) -> Camera:
     the mock camera renders from the arm's actual joints through ``model``."""
     backend, _ = camera_backend(spec)
     _check_config(backend, config)
-    require_extra(backend)
+    require_backend_extra(backend)
     return getattr(importlib.import_module(backend.module), backend.driver).from_config(
         config, model, arm)
 
@@ -214,7 +213,7 @@ def arm_config(name: str, **values: Any) -> Any:
 def camera_config(spec: str, **values: Any) -> Any:
     """A config for camera ``spec``; an ``opencv:<device>`` spec fills in the device."""
     backend, device = camera_backend(spec)
-    require_extra(backend)
+    require_backend_extra(backend)
     if device:
         values = {**values, "device": device}
     return _make_config(backend, values)
@@ -239,3 +238,36 @@ def read_ur_kinematics(host: str, model: str | None = None, **kwargs: Any):
     :func:`drivers.ur.primary.read_arm_kinematics` for ``port`` and ``timeout``."""
     primary = importlib.import_module("drivers.ur.primary")
     return primary.read_arm_kinematics(host, model, **kwargs)
+
+
+# -- optional extras: ecosystem bridges installed with ``pip install armstereo[name]`` ------------
+
+
+@dataclass(frozen=True)
+class Extra:
+    """An optional extra: the pip extra's name, the modules it brings and what needs them."""
+
+    name: str
+    modules: tuple[str, ...]
+    purpose: str
+
+
+EXTRAS: dict[str, Extra] = {
+    "ros2": Extra("ros2", ("rosbags",), "ROS 2 bags (armstereo export --to ros2, "
+                  "armstereo import)"),
+    "genicam": Extra("genicam", ("harvesters",), "the genicam camera"),
+    "realsense": Extra("realsense", ("pyrealsense2",), "the realsense camera"),
+}
+
+
+def require_extra(name: str) -> None:
+    """Import the modules of extra ``name``, or raise ConfigError in one line saying how to
+    install it (``pip install 'armstereo[name]'``)."""
+    extra = EXTRAS[name]
+    for module in extra.modules:
+        try:
+            importlib.import_module(module)
+        except ImportError as err:
+            raise ConfigError(f"{extra.purpose} need(s) the optional '{name}' extra "
+                              f"({module} is not installed): pip install 'armstereo[{name}]'"
+                              ) from err
