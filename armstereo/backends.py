@@ -25,7 +25,7 @@ if TYPE_CHECKING:
     import numpy as np
 
     from armstereo.devices import Arm, Camera
-    from armstereo.kinematics import ArmModel
+    from armstereo.robot.arm_model import ArmModel
 
 
 @dataclass(frozen=True)

@@ -33,7 +33,7 @@ from armstereo.calibration.intrinsics import board_pose, calibrate_intrinsics
 from armstereo.calibration.mount_file import truth_error
 from armstereo.calibration.poses import pose_difference
 from armstereo.calibration.synthetic import simulate_session
-from armstereo.kinematics import ArmModel
+from armstereo.robot.arm_model import ArmModel
 
 TUNING = ("ur5e", "chessboard:17x12:0.016", 0)
 HELD_OUT = (("ur5e", "chessboard:17x12:0.016", 100), ("ur10e", "chessboard:17x12:0.016", 0),

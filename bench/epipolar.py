@@ -52,8 +52,8 @@ TEMPLE = ROOT / "tests" / "data" / "temple_ring"
 
 
 def mock_pair():
-    from armstereo.kinematics import ArmModel
     from armstereo.mount import CameraMount
+    from armstereo.robot.arm_model import ArmModel
     from drivers.mock.scene import default_table_scene
     from drivers.mock.start_poses import table_start as mock_start_configuration
 

@@ -37,9 +37,9 @@ from armstereo.evaluation.scene_truth import SceneTruth  # noqa: E402
 from armstereo.fusion import run  # noqa: E402
 from armstereo.fusion.mesh import extract_mesh, fused_cloud  # noqa: E402
 from armstereo.fusion.tsdf import TsdfVolume  # noqa: E402
-from armstereo.kinematics import ArmModel  # noqa: E402
 from armstereo.mount import CameraMount  # noqa: E402
 from armstereo.recording import Recording  # noqa: E402
+from armstereo.robot.arm_model import ArmModel  # noqa: E402
 from armstereo.scene.analysis import SceneOptions, analyze_scene  # noqa: E402
 from armstereo.scene.cloud import SceneCloud  # noqa: E402
 from drivers.mock.scene import SCENE_CENTER, default_table_scene  # noqa: E402

@@ -43,9 +43,9 @@ from armstereo.fusion.mesh import Mesh, extract_mesh
 from armstereo.fusion.metrics import reference_surface, score_mesh
 from armstereo.fusion.run import FusionOptions, fuse_recording, reconstruct_pairs
 from armstereo.fusion.tsdf import Roi, TsdfVolume
-from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
 from armstereo.recording import Recording
+from armstereo.robot.arm_model import ArmModel
 from drivers.mock.scene import SCENE_CENTER, default_table_scene
 
 TARGET = (SCENE_CENTER[0], SCENE_CENTER[1], 0.03)

@@ -29,9 +29,9 @@ from armstereo.fusion.mesh_ply import read_mesh_ply
 from armstereo.fusion.metrics import reference_surface, score_mesh
 from armstereo.fusion.run import FusionOptions, fuse_recording
 from armstereo.fusion.tsdf import Roi
-from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
 from armstereo.recording import Recording
+from armstereo.robot.arm_model import ArmModel
 
 TARGET = (-0.45, -0.13, 0.03)
 ROI = Roi((-0.65, -0.33, -0.012), (-0.25, 0.07, 0.17))  # the scene's objects and table around

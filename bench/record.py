@@ -25,9 +25,9 @@ from mcap.writer import CompressionType
 
 from armstereo.camera_model import Intrinsics
 from armstereo.devices import Frame
-from armstereo.kinematics import JOINT_NAMES
 from armstereo.recording import RecordingWriter
 from armstereo.recording.writer import JPEG_QUALITY, PNG_PARAMS
+from armstereo.robot.arm_model import JOINT_NAMES
 from armstereo.transforms import make_T, rot_x
 
 WIDTH, HEIGHT = 640, 480

@@ -14,7 +14,7 @@ from typing import Any
 
 from armstereo import backends
 from armstereo.errors import ConfigError
-from armstereo.kinematics import MODEL_NAMES
+from armstereo.robot.arm_model import MODEL_NAMES
 
 _DEST = "backend_flag:"  # argparse dest prefix of generated flags
 

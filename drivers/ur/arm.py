@@ -60,7 +60,7 @@ from drivers.ur.probe import DASHBOARD_PORT, ControllerInfo, check_controller, c
 from drivers.ur.safety import ControllerState
 
 if TYPE_CHECKING:
-    from armstereo.kinematics import ArmModel
+    from armstereo.robot.arm_model import ArmModel
     from drivers.ur.config import URArmConfig
 
 log = logging.getLogger(__name__)
@@ -255,7 +255,7 @@ class URArm(Arm):
         for note in self.kinematics.warnings:
             log.info("UR controller at %s: %s", self.host, note)
         if self.kinematics.calibrated:
-            from armstereo.kinematics import ArmModel
+            from armstereo.robot.arm_model import ArmModel
 
             self.model = ArmModel.from_dh(self.kinematics.table,
                                           mount=getattr(self.model, "mount", None))

@@ -14,9 +14,9 @@ import pytest
 from armstereo.calibration.mount_file import truth_error
 from armstereo.calibration.session import mock_true_mount, read_calibration_session
 from armstereo.cli.main import main
-from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
 from armstereo.recording import Recording
+from armstereo.robot.arm_model import ArmModel
 
 BOARD = "chessboard:17x12:0.016"
 # Issue 12's targets on the mock: realistic profile, and the ideal one.
@@ -207,10 +207,10 @@ def capture_and_score(folder: Path, believed: CameraMount, truth_base: CameraMou
     from armstereo import backends
     from armstereo.apps.demo import point_error_mm, score_reconstruction
     from armstereo.capture import CaptureSettings, plan_capture
-    from armstereo.capture.kinematics import choose_kinematics
     from armstereo.capture.run import model_metadata
     from armstereo.capture.session import capture_to_file
     from armstereo.reconstruct.pipeline import reconstruct_pair
+    from armstereo.robot.source import choose_kinematics
 
     path = folder / f"{believed.name}.mcap"
     given = ArmModel.load("ur5e", mount=believed)

@@ -420,7 +420,7 @@ def test_fk_cross_check_is_tight_once_the_controllers_table_was_read(ctl, monkey
                                 calibration_status=2)
     read = primary.ArmKinematics(table, None, ())
     monkeypatch.setattr(arm_module, "read_arm_kinematics", lambda host, model, timeout: read)
-    monkeypatch.setattr("armstereo.kinematics.ArmModel.from_dh",
+    monkeypatch.setattr("armstereo.robot.arm_model.ArmModel.from_dh",
                         classmethod(lambda cls, table, mount=None: FakeModel()))
     ctl.tcp_offset_error = np.array([offset_m, 0, 0, 0, 0, 0])
     with caplog.at_level(logging.WARNING, logger="drivers.ur.arm"):
