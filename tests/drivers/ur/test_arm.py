@@ -34,8 +34,9 @@ from armstereo.robot.dh import nominal_table
 from armstereo.transforms import make_T, rot_x, rot_y, rot_z, ur_pose_from_T
 from drivers.ur import arm as arm_module
 from drivers.ur import primary, probe
-from drivers.ur.arm import RECEIVE_VARIABLES, URArm
+from drivers.ur.arm import URArm
 from drivers.ur.channel import ControlChannel
+from drivers.ur.connect import RECEIVE_VARIABLES
 from drivers.ur.probe import ControllerInfo
 
 HOST = "192.0.2.10"  # TEST-NET-1: never a real controller
