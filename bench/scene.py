@@ -28,8 +28,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests.* (synthet
 
 from armstereo.scene import SceneCloud, SceneOptions, analyze_scene, load_cloud  # noqa: E402
 from armstereo.scene.cluster import NOISE, voxel_clusters  # noqa: E402
+from armstereo.scene.synthetic import scan  # noqa: E402
 from drivers.mock.scene import SCENE_CENTER, default_table_scene  # noqa: E402
-from tests.armstereo.scene.synth import scan  # noqa: E402
 
 EXTENT = (0.25, 0.22)  # half extents of the scanned table area around the scene centre (m)
 
