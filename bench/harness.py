@@ -4,13 +4,16 @@ Run a benchmark from the repository root as a module, ``.venv/bin/python -m benc
 (``bench/`` is a package, so the scripts import this module without path tricks); results go
 to ``bench/results/``.
 
-* Timing: :func:`timed` (one call), :func:`median_time` (repeats after a warm-up) and
-  :func:`interleaved` (several peers run in turn, so each sees the same machine load), wall or
-  CPU clock; :func:`set_threads` for OpenCV and numba together.
+* Timing: :func:`timed` (one call), :func:`median_time` (repeats after a warm-up),
+  :func:`best_time` (the least of some calls), :func:`interleaved` (several peers run in turn,
+  so each sees the same machine load), :func:`cpu_and_wall` (both clocks); :func:`set_threads`
+  for OpenCV and numba together; :func:`child_command` and :func:`child_env` for a benchmark's
+  own child processes.
 * Data sets: :func:`middlebury_cases` (the four Middlebury v2 pairs in ``tests/data``),
   :func:`synthetic_cases` (rectified scenes rendered with exact ground truth by
-  :func:`render`), both as :class:`Case`; :func:`capture_and_score` (a mock capture with a
-  believed and a true camera mount, reconstructed and scored).
+  :func:`render`), both as :class:`Case`, with :func:`case_disparity` and
+  :func:`case_scores` (bad-2 and the wrong answers); :func:`capture_and_score` (a mock
+  capture with a believed and a true camera mount, reconstructed and scored).
 * Reports: :func:`command_line` (the command that made a report), :func:`machine_note`,
   :func:`write_report` (print, and write the file when asked).
 """
@@ -61,6 +64,13 @@ def median_time(fn: Callable[[], Any], repeats: int, *, warmup: int = 1,
     return statistics.median(times), out
 
 
+def best_time(fn: Callable[[], Any], repeats: int, *,
+              clock: Callable[[], float] = time.perf_counter) -> float:
+    """Least seconds of ``repeats`` calls of ``fn`` (no warm-up): the figure least touched by
+    the machine's other load."""
+    return min(timed(fn, clock=clock)[1] for _ in range(repeats))
+
+
 def interleaved(peers: dict[str, Callable[[], Any]], repeats: int, *, warmup: int = 1,
                 clock: Callable[[], float] = time.perf_counter) -> dict[str, tuple[float, Any]]:
     """Each peer's median seconds over ``repeats`` rounds and its last result; in every round
@@ -83,6 +93,38 @@ def set_threads(n: int) -> None:
 
     cv2.setNumThreads(n)
     numba.set_num_threads(n)
+
+
+def cpu_and_wall(fn: Callable[[], Any], repeats: int) -> tuple[float, float, Any]:
+    """Median wall and median CPU seconds of ``repeats`` calls of ``fn`` (no warm-up: the
+    caller decides), and the last result."""
+    walls, cpus, out = [], [], None
+    for _ in range(repeats):
+        t0, c0 = time.perf_counter(), time.process_time()
+        out = fn()
+        walls.append(time.perf_counter() - t0)
+        cpus.append(time.process_time() - c0)
+    return statistics.median(walls), statistics.median(cpus), out
+
+
+# ---------------------------------------------------------------------------- child processes
+def child_command(module: str, *args: str) -> list[str]:
+    """The command that runs benchmark ``module`` in a fresh interpreter (a cold numba cache,
+    other threads); use it with :func:`child_env`. ``-P``: the working directory is not put on
+    the path, so the path is exactly what :func:`child_env` says."""
+    return [sys.executable, "-P", "-m", module, *args]
+
+
+def child_env(env: dict[str, str] | None = None, src: str | Path | None = None) -> dict[str, str]:
+    """``env`` (default: this process's) with the path a child needs: ``src`` first when given
+    (another checkout whose ``armstereo`` is measured instead), then this repository (for
+    ``bench``)."""
+    env = dict(os.environ if env is None else env)
+    parts = ([str(Path(src).resolve())] if src else []) + [str(ROOT)]
+    if env.get("PYTHONPATH"):
+        parts.append(env["PYTHONPATH"])
+    env["PYTHONPATH"] = os.pathsep.join(parts)
+    return env
 
 
 # ---------------------------------------------------------------------------- reports
@@ -258,6 +300,31 @@ def synthetic_cases() -> list[Case]:
     left, right, gt, mask = render(table, W, H, seed=2)
     cases.append(Case("synthetic table 640x480", left, right, gt, mask, 48, 127))
     return cases
+
+
+def case_disparity(case: Case, options: dict, threads: int) -> np.ndarray:
+    """The disparity map of ``case`` with ``compute_disparity``'s ``options`` (``method``
+    included) in its own window; ``threads`` goes to the Birchfield-Tomasi matcher."""
+    from armstereo.reconstruct.stereo import compute_disparity
+
+    if options.get("method", "birchfield") == "birchfield":
+        options = dict(options, threads=threads)
+    return compute_disparity(case.left, case.right, case.max_disparity,
+                             min_disparity=case.min_disparity, **options)
+
+
+def case_scores(case: Case, disp: np.ndarray) -> dict:
+    """Bad-2 etc. on the non-occluded pixels right of the band ``x < min + max disparity``,
+    plus the share of *answered* pixels (occluded ones included) that are off by > 2 px."""
+    from armstereo.evaluation.disparity import evaluate_disparity
+
+    band = case.min_disparity + case.max_disparity
+    res = evaluate_disparity(disp, case.gt, case.mask, exclude_left=band)
+    known = np.isfinite(case.gt)
+    known[:, :band] = False
+    answered = known & np.isfinite(disp)
+    res["wrong_answers"] = float(np.mean(np.abs(disp - case.gt)[answered] > 2.0))
+    return res
 
 
 def stereo_cases() -> list[Case]:
