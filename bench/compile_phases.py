@@ -146,7 +146,7 @@ def main(argv=None) -> int:
     if args.child:
         print(json.dumps(child(args.child, args.max_disparity, json.loads(args.options))))
         return 0
-    from coldstart import render_pair
+    from bench.coldstart import render_pair
 
     runs = []
     with tempfile.TemporaryDirectory(prefix="phases_") as tmp:
