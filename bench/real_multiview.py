@@ -49,7 +49,7 @@ from armstereo.reconstruct.stereo import compute_disparity
 from armstereo.reconstruct.triangulate import point_cloud
 from armstereo.transforms import make_T
 from bench.harness import RESULTS as BENCH_RESULTS
-from bench.harness import interleaved
+from bench.harness import interleaved, write_report
 
 DATA_ENV = "ARMSTEREO_MVS_DATA"
 RESULTS = BENCH_RESULTS / "real_multiview.md"
@@ -406,10 +406,7 @@ def main(argv: list[str] | None = None) -> int:
                      + summarise(results, pairs, crosses, peers, True))
     parts.append(NOTES)
     text = "\n".join(parts)
-    if args.out:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(text)
-    print(text)
+    write_report(text, args.out)
     return 0
 
 

@@ -35,7 +35,7 @@ import sys
 import time
 from pathlib import Path
 
-from bench.harness import RESULTS, ROOT, child_command, child_env, stereo_cases
+from bench.harness import RESULTS, ROOT, child_command, child_env, stereo_cases, write_report
 
 RESULTS = RESULTS / "stereo_stages.md"
 
@@ -346,10 +346,7 @@ def main(argv: list[str] | None = None) -> int:
     for case in first["cases"]:
         parts.append(f"## Stages: {case}\n\n" + stage_table(case, merged))
     text = "\n".join(parts)
-    if args.out:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(text)
-    print(text)
+    write_report(text, args.out)
     return 0
 
 

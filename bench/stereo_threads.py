@@ -27,7 +27,7 @@ import sys
 import time
 from pathlib import Path
 
-from bench.harness import RESULTS, child_command, child_env
+from bench.harness import RESULTS, child_command, child_env, command_line, write_report
 
 RESULTS = RESULTS / "stereo_threads.md"
 SETTINGS = [
@@ -102,13 +102,11 @@ def main(argv: list[str] | None = None) -> int:
         cells = [f"{t['remap']:.2f} / {t['convert+blur']:.2f}" for t in r["times"].values()]
         lines.append(f"| {label} ({r['layer']}) | " + " | ".join(cells) + " |")
         print(lines[-1], file=sys.stderr)
-    text = (f"# Stage times right after the matcher (threading)\n\nCommand: `.venv/bin/python "
-            f"bench/stereo_threads.py`  \nDate: {time.strftime('%Y-%m-%d')}; "
+    text = (f"# Stage times right after the matcher (threading)\n\nCommand: "
+            f"`{command_line('bench.stereo_threads', [])}`  \nDate: {time.strftime('%Y-%m-%d')}; "
             f"{os.cpu_count()} cores; {ROUNDS} interleaved rounds per process.\n\n"
             + "\n".join(lines) + "\n")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(text)
-    print(text)
+    write_report(text, args.out)
     return 0
 
 
