@@ -22,7 +22,6 @@ import numpy as np
 
 from armstereo import __version__, backends
 from armstereo.capture import CaptureSettings, plan_capture
-from armstereo.capture.kinematics import CaptureKinematics, choose_kinematics
 from armstereo.capture.plan import validate_settings
 from armstereo.capture.run import model_metadata
 from armstereo.capture.session import capture_to_file
@@ -30,14 +29,15 @@ from armstereo.errors import RecordingError
 from armstereo.evaluation.depth import DepthAccuracy, score_depth, visible_mask
 from armstereo.evaluation.scene_truth import SceneTruth
 from armstereo.io.files import write_text_atomic
-from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
 from armstereo.reconstruct.outputs import write_outputs
 from armstereo.reconstruct.pipeline import reconstruct_pair
 from armstereo.reconstruct.stereo import CLEAN_PHOTO_CHECK
 from armstereo.recording import Recording
 from armstereo.recording.inspect import summarize
+from armstereo.robot.arm_model import ArmModel
 from armstereo.robot.model_file import load_arm_model
+from armstereo.robot.source import CaptureKinematics, choose_kinematics
 from armstereo.scene.export import analyze_points
 
 DEFAULT_BASELINE_M = 0.08

@@ -6,7 +6,7 @@ on the mock arm and camera, fused by :func:`armstereo.fusion.run.fuse_recording`
 mesh is rendered headless. The default is the ``ideal`` profile with 1 grey level of sensor
 noise (the issue's "camera noise" case), where the targets are met; on the ``realistic``
 profile the camera's calibration errors make the views disagree by millimetres and the targets
-are missed (numbers in the README).
+are missed (numbers in docs/scan.md).
 """
 
 from __future__ import annotations
