@@ -42,7 +42,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("workflows", ("armstereo.capture", "armstereo.fusion")),
     ("drivers", ("drivers",)),
     ("backend registry", ("armstereo.backends",)),
-    ("applications", ("armstereo.apps",)),
+    ("applications and bridges", ("armstereo.apps", "armstereo.ros2")),
     ("command line", ("armstereo.cli", "armstereo.__main__")),
 )
 
