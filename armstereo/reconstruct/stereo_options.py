@@ -340,6 +340,14 @@ def options_for(method: str | None, given: StereoOptions | Mapping[str, Any] | N
     return with_keywords(OPTIONS_TYPES[method](), dict(given or {}), method)
 
 
+def matcher_record(options: StereoOptions | None) -> dict[str, Any] | None:
+    """``{"method": ..., "options": {every field}}``: how a map was matched, as the reports
+    and recordings keep it (None stays None, e.g. depth that was not matched)."""
+    if options is None:
+        return None
+    return {"method": options.method, "options": options.as_dict()}
+
+
 def with_keywords(options: StereoOptions, keywords: Mapping[str, Any],
                   caller: str) -> StereoOptions:
     """``options`` with the given fields changed (validated again); TypeError naming

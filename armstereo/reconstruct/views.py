@@ -10,7 +10,9 @@ another robot, a dataset); ``armstereo reconstruct`` calls it for each recorded 
 
 Stages (each timed in ``timings_s``): ``rectify`` (Fusiello from the poses, lens distortion
 removed in the same remap; the view from which the other lies to the right becomes "left"),
-``match`` (Birchfield-Tomasi or SGBM on the rectified pair) and ``triangulate``.
+``match`` (Birchfield-Tomasi or SGBM on the rectified pair, as the ``stereo`` options say:
+:class:`~armstereo.reconstruct.stereo_options.BirchfieldOptions` or ``SgbmOptions``) and
+``triangulate``.
 """
 
 from __future__ import annotations
@@ -27,7 +29,8 @@ from armstereo.camera_model import Intrinsics
 from armstereo.errors import ConfigError, StereoError
 from armstereo.io.images import colorize_disparity
 from armstereo.reconstruct.rectify import RectifiedPair, rectified_geometry, rectify_pair
-from armstereo.reconstruct.stereo import METHODS, compute_disparity
+from armstereo.reconstruct.stereo import disparity as match_pair
+from armstereo.reconstruct.stereo_options import METHODS, StereoOptions, options_for
 from armstereo.reconstruct.triangulate import (
     depth_from_disparity,
     depth_in_original_view,
@@ -49,10 +52,12 @@ class Reconstruction:
 
     ``swapped`` is True when the second input view became the rectified left image.
     ``colors_bgr`` is the points' colour as OpenCV images hold it, ``colors`` the same as RGB.
+    ``stereo`` is the matcher's options object (its ``method`` is ``method``).
     """
 
     swapped: bool
     method: str
+    stereo: StereoOptions | None = None
     window: DisparityWindow
     rectified: RectifiedPair
     disparity: np.ndarray
@@ -89,10 +94,11 @@ class Reconstruction:
 def reconstruct_views(image1: np.ndarray, image2: np.ndarray, K1: np.ndarray, K2: np.ndarray,
                       T_base_cam1: np.ndarray, T_base_cam2: np.ndarray, *,
                       dist1: np.ndarray | None = None, dist2: np.ndarray | None = None,
-                      method: str = "birchfield", near: float | None = None,
+                      method: str | None = None, near: float | None = None,
                       far: float | None = None, min_disparity: float | None = None,
                       max_disparity: float | None = None, disparity_budget: int | str = "auto",
-                      stereo_options: dict | None = None) -> Reconstruction:
+                      stereo_options: dict | None = None,
+                      stereo: StereoOptions | None = None) -> Reconstruction:
     """Rectify, match and triangulate two views of a static scene.
 
     ``image1``/``image2``: uint8 grey or BGR images. ``K1``/``K2``: 3x3 camera matrices,
@@ -102,14 +108,15 @@ def reconstruct_views(image1: np.ndarray, image2: np.ndarray, K1: np.ndarray, K2
     ``near``..``far`` (m), or equivalently ``max_disparity``..``min_disparity`` (pixels of the
     rectified pair, f b / Z; 0 = infinity); unset ends are guessed from the scene (the plane
     z = 0 of base) or defaults. ``disparity_budget`` caps the labels searched ("auto" = as the
-    range needs, up to 256). ``method``: "birchfield" (default) or "sgbm";
-    ``stereo_options`` go to the matcher.
+    range needs, up to 256). ``stereo``: how to match, an options object
+    (:class:`~armstereo.reconstruct.stereo_options.BirchfieldOptions`, the default, or
+    ``SgbmOptions``); or ``method`` ("birchfield" or "sgbm") with the older ``stereo_options``
+    dict of the matcher's keywords. The result records the options (``stereo``).
 
     Raises ConfigError for bad options, StereoError when the pair cannot be rectified or
     matched (no baseline, views that do not overlap, mismatched images).
     """
-    if method not in METHODS:
-        raise ConfigError(f"--method must be one of {', '.join(METHODS)}, got {method!r}")
+    matcher = _matcher(method, stereo, stereo_options)
     timings: dict[str, float] = {}
     with _timed(timings, "rectify"):
         intr1, T1 = _view(image1, K1, dist1, T_base_cam1, "1")
@@ -127,14 +134,27 @@ def reconstruct_views(image1: np.ndarray, image2: np.ndarray, K1: np.ndarray, K2
               rect.rotation_deg, rect.baseline * 1000, window.near, window.far,
               window.max_disparity, window.source)
     with _timed(timings, "match"):
-        disparity = compute_disparity(rect.left, rect.right, window.max_disparity, method=method,
-                                      min_disparity=0, left_mask=rect.left_mask,
-                                      right_mask=rect.right_mask, **(stereo_options or {}))
+        disparity = match_pair(rect.left, rect.right, window.max_disparity, matcher,
+                               min_disparity=0, left_mask=rect.left_mask,
+                               right_mask=rect.right_mask)
     with _timed(timings, "triangulate"):
         points, colors = point_cloud(disparity, rect.geometry, rect.left)
-    return Reconstruction(swapped=swapped, method=method, window=window, rectified=rect,
+    return Reconstruction(swapped=swapped, method=matcher.method, stereo=matcher,
+                          window=window, rectified=rect,
                           disparity=disparity, points_base=points, colors_bgr=colors,
                           timings_s=timings)
+
+
+def _matcher(method: str | None, stereo: StereoOptions | None,
+             stereo_options: dict | None) -> StereoOptions:
+    """The matcher's options from ``stereo`` or ``method`` and ``stereo_options``; ConfigError
+    for an unknown method, both kinds of options or options of another method."""
+    if method is not None and method not in METHODS:
+        raise ConfigError(f"--method must be one of {', '.join(METHODS)}, got {method!r}")
+    if stereo is not None and stereo_options is not None:
+        raise ConfigError("give stereo (an options object) or stereo_options, not both")
+    return options_for(method, stereo if stereo is not None else stereo_options,
+                       error=ConfigError)
 
 
 def _view(image: np.ndarray, K, dist, T, which: str) -> tuple[Intrinsics, np.ndarray]:
