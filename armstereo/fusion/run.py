@@ -192,7 +192,8 @@ def fuse_recording(recording: str | Path, out_dir: str | Path,
     with _timed(timings, "write"):
         _write(paths, mesh, cloud, cloud_colors, results,
                {"source": str(recording), "pairs": str(len(results)),
-                "voxel_m": repr(options.voxel), "roi_m": str(roi)})
+                "voxel_m": repr(options.voxel), "roi_m": str(roi),
+                "matcher": json.dumps(report["matcher"])})
     if truth is not None and options.score:
         with _timed(timings, "score"):
             report["accuracy"] = _score(truth, pairs, roi, mesh, cloud, results, options)

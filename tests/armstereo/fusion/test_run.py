@@ -99,6 +99,7 @@ def test_mcap_shows_mesh_cloud_and_tour(fused):
                       TOPIC_VIEWS: "foxglove.SceneUpdate", TOPIC_TF: "foxglove.FrameTransforms"}
     assert counts[TOPIC_TF] == 2 * report["views"]  # both views of every pair
     assert meta["armstereo"]["kind"] == "fusion"
+    assert json.loads(meta["armstereo"]["matcher"]) == report["matcher"]
 
 
 def test_truth_can_be_given_and_is_optional(scan, tmp_path):
