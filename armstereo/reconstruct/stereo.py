@@ -39,13 +39,13 @@ import numba
 import numpy as np
 
 from armstereo.errors import StereoError
-from armstereo.reconstruct.birchfield import postprocess as paper_steps
-from armstereo.reconstruct.birchfield.aggregate import match_image_aggregated
-from armstereo.reconstruct.birchfield.dp_exact import max_exact_width
-from armstereo.reconstruct.birchfield.dp_pruned import BORDER
-from armstereo.reconstruct.birchfield.matcher import DP_EXACT, DP_PRUNED, match_image
+from armstereo.reconstruct.birchfield.columns.vertical import match_image_vertical
+from armstereo.reconstruct.birchfield.common.states import BORDER
+from armstereo.reconstruct.birchfield.paper import postprocess as paper_steps
+from armstereo.reconstruct.birchfield.paper.dp_exact import max_exact_width
+from armstereo.reconstruct.birchfield.paper.matcher import DP_EXACT, DP_PRUNED, match_image
 from armstereo.reconstruct.birchfield.refine import left_right_mismatch
-from armstereo.reconstruct.birchfield.vertical import match_image_vertical
+from armstereo.reconstruct.birchfield.window.aggregate import match_image_aggregated
 from armstereo.reconstruct.consensus import replace_outliers
 from armstereo.reconstruct.rejection import (
     add_rejections,
@@ -255,7 +255,7 @@ def _finish(disp, greys, sub, rmask, o: BirchfieldOptions, dmin: int, max_dispar
 def _match(left, right, lmask, rmask, *, dmin, nd, occ, rew, combine_max, mode, threads,
            rx, ry, slant, aggregated, paper_postprocess, smooth=None, textured=None, pool=None):
     """Scanline matching (+ the paper's postprocessing) -> ``(index, state)``: int32 window
-    indices (-1 = no match) and the pixel states of :mod:`.birchfield.dp_pruned`; the
+    indices (-1 = no match) and the pixel states of :mod:`.birchfield.common.states`; the
     default matcher runs on ``pool``'s threads (None: its own)."""
     lm = np.ascontiguousarray(left)
     rm = np.ascontiguousarray(right)

@@ -16,15 +16,16 @@ from armstereo.errors import StereoError
 from armstereo.evaluation.disparity import evaluate_disparity
 from armstereo.io.disparity import read_disparity
 from armstereo.reconstruct import rejection, stereo
-from armstereo.reconstruct.birchfield import aggregate, jit
-from armstereo.reconstruct.birchfield.aggregate import (
+from armstereo.reconstruct.birchfield.common import jit
+from armstereo.reconstruct.birchfield.common.states import BORDER
+from armstereo.reconstruct.birchfield.paper.matcher import match_image
+from armstereo.reconstruct.birchfield.window import aggregate
+from armstereo.reconstruct.birchfield.window.aggregate import (
     cost_divisor,
     fill_outside,
     match_image_aggregated,
 )
-from armstereo.reconstruct.birchfield.dp_pruned import BORDER
-from armstereo.reconstruct.birchfield.lanes import LANES
-from armstereo.reconstruct.birchfield.matcher import match_image
+from armstereo.reconstruct.birchfield.window.lanes import LANES
 from armstereo.reconstruct.stereo import PAPER_OPTIONS, birchfield
 from tests.support import MIDDLEBURY
 from tests.support.images import box_pair, texture
