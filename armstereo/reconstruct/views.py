@@ -28,7 +28,8 @@ import numpy as np
 from armstereo.camera_model import Intrinsics
 from armstereo.errors import ConfigError, StereoError
 from armstereo.io.images import colorize_disparity
-from armstereo.reconstruct.rectify import RectifiedPair, rectified_geometry, rectify_pair
+from armstereo.reconstruct.rectified import RectifiedPair
+from armstereo.reconstruct.rectify import RectificationPlan
 from armstereo.reconstruct.stereo import disparity as match_pair
 from armstereo.reconstruct.stereo_options import METHODS, StereoOptions, options_for
 from armstereo.reconstruct.triangulate import (
@@ -37,7 +38,6 @@ from armstereo.reconstruct.triangulate import (
     point_cloud,
 )
 from armstereo.reconstruct.window import DisparityWindow, choose_window, fit_to_canvas
-from armstereo.transforms import as_rigid
 
 log = logging.getLogger(__name__)
 
@@ -119,15 +119,15 @@ def reconstruct_views(image1: np.ndarray, image2: np.ndarray, K1: np.ndarray, K2
     matcher = _matcher(method, stereo, stereo_options)
     timings: dict[str, float] = {}
     with _timed(timings, "rectify"):
-        intr1, T1 = _view(image1, K1, dist1, T_base_cam1, "1")
-        intr2, T2 = _view(image2, K2, dist2, T_base_cam2, "2")
-        geometry0, swapped = rectified_geometry(intr1, T1, intr2, T2)
+        # the poses are checked and the rectification solved once, for both steps below
+        plan = RectificationPlan.from_views(_intrinsics(image1, K1, dist1, "1"), T_base_cam1,
+                                            _intrinsics(image2, K2, dist2, "2"), T_base_cam2,
+                                            snap=True)
+        geometry0, swapped = plan.geometry(), plan.swapped
         near, far = _depth_range(geometry0, near, far, min_disparity, max_disparity)
-        left_intr, T_left = (intr2, T2) if swapped else (intr1, T1)
-        window = choose_window(geometry0, left_intr, T_left, near=near, far=far,
-                               max_disparity=disparity_budget)
-        rect = rectify_pair(image1, image2, intr1.K, intr1.dist, T1, intr2.K, intr2.dist, T2,
-                            depth_range=(window.near, window.far))
+        window = choose_window(geometry0, plan.left_intrinsics, plan.T_base_left_camera,
+                               near=near, far=far, max_disparity=disparity_budget)
+        rect = plan.rectify(image1, image2, depth_range=(window.near, window.far))
         window = fit_to_canvas(window, rect.geometry, auto=disparity_budget == "auto")
     log.debug("left = view %d%s, rotation %.0f deg, baseline %.1f mm, depth %.3f-%.3f m -> "
               "disparities 0..%d (%s)", 2 if swapped else 1, " (swapped)" if swapped else "",
@@ -157,14 +157,13 @@ def _matcher(method: str | None, stereo: StereoOptions | None,
                        error=ConfigError)
 
 
-def _view(image: np.ndarray, K, dist, T, which: str) -> tuple[Intrinsics, np.ndarray]:
-    """The view's intrinsics (from its image size) and its checked, re-orthonormalized pose."""
+def _intrinsics(image: np.ndarray, K, dist, which: str) -> Intrinsics:
+    """The view's intrinsics, its size from its image (checked)."""
     if not isinstance(image, np.ndarray) or image.ndim not in (2, 3) or image.size == 0:
         raise StereoError(f"image{which} must be a non-empty (H, W) or (H, W, 3) uint8 array")
     dist = np.zeros(5) if dist is None else np.asarray(dist, dtype=float).reshape(-1)
-    intr = Intrinsics(int(image.shape[1]), int(image.shape[0]), np.asarray(K, dtype=float),
+    return Intrinsics(int(image.shape[1]), int(image.shape[0]), np.asarray(K, dtype=float),
                       dist)
-    return intr, as_rigid(T, f"T_base_cam{which}", error=StereoError, snap=True)
 
 
 def _depth_range(geometry, near, far, min_disparity, max_disparity):
