@@ -40,6 +40,7 @@ from armstereo.reconstruct.stereo_options import (
     StereoOptions,
     matcher_record,
     options_for,
+    resolve_matcher,
 )
 from armstereo.recording import Recording
 from armstereo.recording.inspect import summarize
@@ -88,8 +89,8 @@ class DemoOptions:
         carried across a depth edge: bench/results/footprint.md), else the defaults.
         ConfigError for options of another method than ``method``."""
         if self.stereo is not None or self.stereo_options is not None:
-            given = self.stereo if self.stereo is not None else self.stereo_options
-            return options_for(self.method, given, error=ConfigError)
+            return resolve_matcher(self.method, self.stereo, self.stereo_options,
+                                   error=ConfigError)
         if self.profile_name == "ideal" and self.method == "birchfield":
             return BirchfieldOptions(photo_check=CLEAN_PHOTO_CHECK)
         return options_for(self.method, error=ConfigError)

@@ -45,7 +45,7 @@ from armstereo.reconstruct.stereo_options import (
     BirchfieldOptions,
     StereoOptions,
     matcher_record,
-    options_for,
+    resolve_matcher,
 )
 from armstereo.recording import Recording
 
@@ -103,10 +103,7 @@ class FusionOptions:
     def matcher(self) -> StereoOptions:
         """How each pair is matched; ConfigError for an unknown method, options of another
         method or both kinds of options."""
-        if self.stereo is not None and self.stereo_options is not None:
-            raise ConfigError("give stereo (an options object) or stereo_options, not both")
-        given = self.stereo if self.stereo is not None else self.stereo_options
-        return options_for(self.method, given, error=ConfigError)
+        return resolve_matcher(self.method, self.stereo, self.stereo_options, error=ConfigError)
 
     @property
     def trunc_m(self) -> float:

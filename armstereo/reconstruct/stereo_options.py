@@ -340,6 +340,17 @@ def options_for(method: str | None, given: StereoOptions | Mapping[str, Any] | N
     return with_keywords(OPTIONS_TYPES[method](), dict(given or {}), method)
 
 
+def resolve_matcher(method: str | None, stereo: StereoOptions | None = None,
+                    stereo_options: Mapping[str, Any] | None = None, *,
+                    error: type[Exception] = StereoError) -> StereoOptions:
+    """The options of a caller that takes either an options object (``stereo``) or ``method``
+    with the older dict of the matcher's keywords (``stereo_options``): :func:`options_for`,
+    and ``error`` when both kinds are given."""
+    if stereo is not None and stereo_options is not None:
+        raise error("give stereo (an options object) or stereo_options, not both")
+    return options_for(method, stereo if stereo is not None else stereo_options, error=error)
+
+
 def matcher_record(options: StereoOptions | None) -> dict[str, Any] | None:
     """``{"method": ..., "options": {every field}}``: how a map was matched, as the reports
     and recordings keep it (None stays None, e.g. depth that was not matched)."""

@@ -31,7 +31,7 @@ from armstereo.io.images import colorize_disparity
 from armstereo.reconstruct.rectified import RectifiedPair
 from armstereo.reconstruct.rectify import RectificationPlan
 from armstereo.reconstruct.stereo import disparity as match_pair
-from armstereo.reconstruct.stereo_options import METHODS, StereoOptions, options_for
+from armstereo.reconstruct.stereo_options import METHODS, StereoOptions, resolve_matcher
 from armstereo.reconstruct.triangulate import (
     depth_from_disparity,
     depth_in_original_view,
@@ -151,10 +151,7 @@ def _matcher(method: str | None, stereo: StereoOptions | None,
     for an unknown method, both kinds of options or options of another method."""
     if method is not None and method not in METHODS:
         raise ConfigError(f"--method must be one of {', '.join(METHODS)}, got {method!r}")
-    if stereo is not None and stereo_options is not None:
-        raise ConfigError("give stereo (an options object) or stereo_options, not both")
-    return options_for(method, stereo if stereo is not None else stereo_options,
-                       error=ConfigError)
+    return resolve_matcher(method, stereo, stereo_options, error=ConfigError)
 
 
 def _intrinsics(image: np.ndarray, K, dist, which: str) -> Intrinsics:
