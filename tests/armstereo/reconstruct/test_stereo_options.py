@@ -125,3 +125,10 @@ def test_old_option_dicts_become_the_methods_options():
     assert options_for("sgbm", {"block_size": 7}) == SgbmOptions(block_size=7)
     with pytest.raises(StereoError, match="unknown stereo method 'bm'"):
         options_for("bm")
+
+
+def test_the_options_types_are_importable_from_the_package():
+    import armstereo
+
+    assert armstereo.BirchfieldOptions is BirchfieldOptions
+    assert armstereo.SgbmOptions is SgbmOptions
