@@ -3,7 +3,7 @@
 One thread each (numba and OpenCV), process CPU time of the calling thread (steadier than wall
 time on a shared machine), median of ``--repeats`` runs after a warm-up, the peers interleaved
 run by run. The matcher's share is the time spent in
-``armstereo.reconstruct.birchfield.aggregate.match_image_aggregated`` during the call; the
+``armstereo.reconstruct.birchfield.window.aggregate.match_image_aggregated`` during the call; the
 rest is sub-pixel refinement and postprocessing. Pairs: the Middlebury pairs of tests/data,
 with the disparity window of bench/stereo.py.
 
@@ -27,7 +27,7 @@ import cv2
 import numba
 
 import armstereo
-import armstereo.reconstruct.birchfield.aggregate as aggregate
+import armstereo.reconstruct.birchfield.window.aggregate as aggregate
 import armstereo.reconstruct.stereo as stereo
 from bench.harness import MIDDLEBURY, MIDDLEBURY_NAMES
 

@@ -1,7 +1,7 @@
 """Benchmark: where the time of ``birchfield()`` goes, stage by stage, beside StereoSGBM.
 
 Each stage is one named function of :mod:`armstereo.reconstruct.stereo` (or of the modules
-it calls: ``birchfield.aggregate``, ``consensus``, ``speckles``): the worker wraps every one
+it calls: ``birchfield.window.aggregate``, ``consensus``, ``speckles``): the worker wraps every one
 it finds with a timer and reports its *own* time (without the stages it calls), the median
 over the runs; "rest of birchfield()" is what runs in ``birchfield()``'s own body. A stage a
 variant does not have (renamed, or inline there) shows as "-" and its time is in the row of
@@ -143,7 +143,7 @@ def worker(repeats: int, options: dict, only: list[str] | None, masked: bool) ->
     import numba
 
     from armstereo.reconstruct import stereo  # from the tree on PYTHONPATH: import it first
-    from armstereo.reconstruct.birchfield import aggregate
+    from armstereo.reconstruct.birchfield.window import aggregate
 
     cases = [c for c in _bench_cases() if not only or c.name in only]
     numba.set_num_threads(1)
