@@ -42,8 +42,8 @@ from armstereo.capture.view_tour import ViewTour, plan_view_tour, tour_settings
 from armstereo.devices import Camera
 from armstereo.errors import ArmstereoError
 from armstereo.io.files import write_text_atomic
-from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
+from armstereo.robot.arm_model import ArmModel
 
 MOCK_TRUTH_TAG = 31  # random stream of the mock camera's true mount (independent of the rest)
 

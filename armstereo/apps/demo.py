@@ -22,22 +22,29 @@ import numpy as np
 
 from armstereo import __version__, backends
 from armstereo.capture import CaptureSettings, plan_capture
-from armstereo.capture.kinematics import CaptureKinematics, choose_kinematics
 from armstereo.capture.plan import validate_settings
 from armstereo.capture.run import model_metadata
 from armstereo.capture.session import capture_to_file
-from armstereo.errors import RecordingError
+from armstereo.errors import ConfigError, RecordingError
 from armstereo.evaluation.depth import DepthAccuracy, score_depth, visible_mask
 from armstereo.evaluation.scene_truth import SceneTruth
 from armstereo.io.files import write_text_atomic
-from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
 from armstereo.reconstruct.outputs import write_outputs
 from armstereo.reconstruct.pipeline import reconstruct_pair
-from armstereo.reconstruct.stereo import CLEAN_PHOTO_CHECK
+from armstereo.reconstruct.stereo_options import (
+    CLEAN_PHOTO_CHECK,
+    BirchfieldOptions,
+    StereoOptions,
+    matcher_record,
+    options_for,
+    resolve_matcher,
+)
 from armstereo.recording import Recording
 from armstereo.recording.inspect import summarize
+from armstereo.robot.arm_model import ArmModel
 from armstereo.robot.model_file import load_arm_model
+from armstereo.robot.source import CaptureKinematics, choose_kinematics
 from armstereo.scene.export import analyze_points
 
 DEFAULT_BASELINE_M = 0.08
@@ -51,7 +58,7 @@ class DemoOptions:
 
     robot: str = "ur5e"
     baseline: float = DEFAULT_BASELINE_M
-    method: str = "birchfield"
+    method: str | None = None  # None: ``stereo``'s method, else "birchfield"
     seed: int = 0
     # Grey levels of extra Gaussian noise; None: 1.0 on the ideal profile (a real sensor is
     # never noise free), 0 on the others (their image effects carry the sensor's noise).
@@ -62,23 +69,37 @@ class DemoOptions:
     # What the software believes about the camera (None: the bundled mount file, which the
     # mock's true camera differs from by the profile's errors).
     mount: CameraMount | None = None
-    # Options of the matcher; None: the profile's choice (see :meth:`matcher_options`).
+    # Options of the matcher: an options object, or the older dict of its keywords; None:
+    # the profile's choice (see :meth:`matcher`).
     stereo_options: dict | None = None
+    stereo: StereoOptions | None = None
+
+    def __post_init__(self) -> None:
+        if self.method is None:  # frozen: set once, here
+            object.__setattr__(self, "method", getattr(self.stereo, "method", "birchfield"))
 
     @property
     def profile_name(self) -> str:
         return getattr(self.profile, "name", self.profile)
 
+    def matcher(self) -> StereoOptions:
+        """How the demo matches: ``stereo`` or ``stereo_options`` if given; else, on the ideal
+        profile with Birchfield-Tomasi, the photo-consistency check for clean views (both views
+        see the same intensities there, so a match that does not look alike is the foreground
+        carried across a depth edge: bench/results/footprint.md), else the defaults.
+        ConfigError for options of another method than ``method``."""
+        if self.stereo is not None or self.stereo_options is not None:
+            return resolve_matcher(self.method, self.stereo, self.stereo_options,
+                                   error=ConfigError)
+        if self.profile_name == "ideal" and self.method == "birchfield":
+            return BirchfieldOptions(photo_check=CLEAN_PHOTO_CHECK)
+        return options_for(self.method, error=ConfigError)
+
     def matcher_options(self) -> dict:
-        """The matcher's options: ``stereo_options`` if given; else, on the ideal profile
-        with Birchfield-Tomasi, the photo-consistency check for clean views (both views see
-        the same intensities there, so a match that does not look alike is the foreground
-        carried across a depth edge: bench/results/footprint.md), else the defaults."""
+        """The matcher's options beyond its defaults, by name (``stereo_options`` as given)."""
         if self.stereo_options is not None:
             return dict(self.stereo_options)
-        if self.profile_name == "ideal" and self.method == "birchfield":
-            return {"photo_check": CLEAN_PHOTO_CHECK}
-        return {}
+        return self.matcher().non_defaults()
 
 
 def demo_settings(options: DemoOptions) -> CaptureSettings:
@@ -87,6 +108,7 @@ def demo_settings(options: DemoOptions) -> CaptureSettings:
     settings = CaptureSettings(baseline=options.baseline, direction=np.array([1.0, 0.0, 0.0]),
                                pairs=1)
     validate_settings(settings)
+    options.matcher()  # the matcher's options are checked here too
     return settings
 
 
@@ -131,8 +153,7 @@ def run_demo(out_dir: Path, options: DemoOptions = DemoOptions(),
 
     progress(f"[4/7] rectifying and matching ({options.method}; the first run compiles the "
              "matcher, later runs reuse the cache)")
-    recon = reconstruct_pair(pair, method=options.method,
-                             stereo_options=options.matcher_options())
+    recon = reconstruct_pair(pair, stereo=options.matcher())
     timings.update({k: recon.timings_s[k] for k in ("decode", "rectify", "match",
                                                     "triangulate")})
 
@@ -253,6 +274,7 @@ def _report(recon, accuracy, timings: dict[str, float], options: DemoOptions) ->
         "method": options.method,
         # options passed to the matcher beyond its defaults (e.g. the ideal profile's check)
         "matcher_options": options.matcher_options(),
+        "matcher": matcher_record(recon.stereo),  # every option: how to match it again
         "disparity_range_px": [0, int(recon.window.max_disparity)],
         "depth_range_m": [round(recon.window.near, 4), round(recon.window.far, 4)],
         "robot": options.robot,

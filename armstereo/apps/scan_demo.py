@@ -6,7 +6,7 @@ on the mock arm and camera, fused by :func:`armstereo.fusion.run.fuse_recording`
 mesh is rendered headless. The default is the ``ideal`` profile with 1 grey level of sensor
 noise (the issue's "camera noise" case), where the targets are met; on the ``realistic``
 profile the camera's calibration errors make the views disagree by millimetres and the targets
-are missed (numbers in the README).
+are missed (numbers in docs/scan.md).
 """
 
 from __future__ import annotations
@@ -123,7 +123,7 @@ def _report(options: ScanDemoOptions, noise: float, outcome, fusion: dict,
         "viewpoints_kept": len(scan.views), "viewpoints_dropped": len(scan.dropped),
         "pairs": len(outcome.result.pairs), "baseline_m": options.baseline,
         "radius_m": options.radius, "elevation_deg": options.elevation_deg,
-        "voxel_m": options.voxel, "method": options.method,
+        "voxel_m": options.voxel, "method": options.method, "matcher": fusion["matcher"],
         "timings_s": {"scan": round(timings["scan"], 3),
                       **{f"fuse_{k}": v for k, v in fusion["timings_s"].items()},
                       "render": round(timings["render"], 3),

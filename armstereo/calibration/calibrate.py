@@ -45,8 +45,8 @@ from armstereo.calibration.report import (
 )
 from armstereo.camera_model import Intrinsics
 from armstereo.errors import ConfigError
-from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
+from armstereo.robot.arm_model import ArmModel
 from armstereo.transforms import invert
 
 log = logging.getLogger(__name__)

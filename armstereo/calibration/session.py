@@ -5,7 +5,7 @@ A calibration session is an ordinary armstereo recording (``RecordingWriter.writ
 view: image, actual joints, /tf with the *nominal* mount) whose ``armstereo`` metadata record
 also holds the keys below. The computation uses only the images, the joints and the arm's
 kinematics the session recorded (the controller's calibrated DH table when it was read, see
-:mod:`armstereo.capture.kinematics`; nominal kinematics would bias the hand-eye), so a
+:mod:`armstereo.robot.source`; nominal kinematics would bias the hand-eye), so a
 recomputation gives the same mount. A mock session also records the mock camera's truth
 (``mock_camera_truth``), which grades the result (``truth_error``).
 """
@@ -27,9 +27,9 @@ from armstereo.calibration.calibrate import (
 from armstereo.calibration.mount_file import truth_error
 from armstereo.camera_model import Intrinsics
 from armstereo.errors import ArmstereoError, RecordingError
-from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
 from armstereo.recording import Recording
+from armstereo.robot.arm_model import ArmModel
 
 PURPOSE_KEY = "purpose"
 PURPOSE = "calibration"

@@ -26,7 +26,6 @@ from armstereo.calibration.checks import MIN_VIEWS
 from armstereo.calibration.report import report_lines
 from armstereo.calibration.session import calibrate_recording, calibration_metadata
 from armstereo.calibration.views import MAX_VIEWS, ViewPlanSettings
-from armstereo.capture.kinematics import choose_kinematics
 from armstereo.capture.plan import CaptureSettings, Workspace
 from armstereo.capture.run import model_metadata
 from armstereo.capture.session import capture_to_file, confirm_live_motion
@@ -39,6 +38,7 @@ from armstereo.errors import ArmstereoError, ConfigError
 from armstereo.io.files import write_text_atomic
 from armstereo.mount import CameraMount
 from armstereo.robot.model_file import load_arm_model
+from armstereo.robot.source import choose_kinematics
 
 log = logging.getLogger("armstereo.calibrate")
 

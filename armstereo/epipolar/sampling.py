@@ -24,7 +24,7 @@ import cv2
 import numpy as np
 
 from armstereo.epipolar.errors import DegenerateError
-from armstereo.epipolar.fundamental import eight_point, refit_on_inliers
+from armstereo.epipolar.linear import eight_point, refit_on_inliers
 from armstereo.epipolar.metrics import sampson_homogeneous
 from armstereo.epipolar.projective import homogeneous
 

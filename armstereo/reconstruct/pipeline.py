@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from armstereo.errors import RecordingError
+from armstereo.reconstruct.stereo_options import StereoOptions
 from armstereo.reconstruct.views import Reconstruction, reconstruct_views
 from armstereo.recording import Pair
 
@@ -56,11 +57,14 @@ def _view_inputs(pair: Pair, which: str):
     return image, intr, np.asarray(T, dtype=float)
 
 
-def reconstruct_pair(pair: Pair, *, method: str = "birchfield", max_disparity: int | str = "auto",
-                     near: float | None = None, far: float | None = None,
-                     stereo_options: dict | None = None) -> PairReconstruction:
+def reconstruct_pair(pair: Pair, *, method: str | None = None,
+                     max_disparity: int | str = "auto", near: float | None = None,
+                     far: float | None = None, stereo_options: dict | None = None,
+                     stereo: StereoOptions | None = None) -> PairReconstruction:
     """Rectify, match and triangulate one recorded pair (``armstereo.recording.Pair``);
-    ``max_disparity`` is the matcher's budget ("auto" or a number of labels).
+    ``max_disparity`` is the matcher's budget ("auto" or a number of labels); ``stereo`` (an
+    options object) or ``method`` and ``stereo_options`` say how to match, as
+    :func:`~armstereo.reconstruct.views.reconstruct_views` takes them.
 
     Raises RecordingError for a pair without poses, calibration or images, ConfigError for bad
     options and StereoError when the geometry cannot be rectified.
@@ -71,7 +75,8 @@ def reconstruct_pair(pair: Pair, *, method: str = "birchfield", max_disparity: i
     decode_s = time.perf_counter() - t0
     recon = reconstruct_views(img1, img2, intr1.K, intr2.K, T1, T2, dist1=intr1.dist,
                               dist2=intr2.dist, method=method, near=near, far=far,
-                              disparity_budget=max_disparity, stereo_options=stereo_options)
+                              disparity_budget=max_disparity, stereo_options=stereo_options,
+                              stereo=stereo)
     left, right = (pair.right, pair.left) if recon.swapped else (pair.left, pair.right)
     fields = {f: getattr(recon, f) for f in Reconstruction.__dataclass_fields__}
     fields["timings_s"] = {"decode": decode_s, **recon.timings_s}

@@ -9,10 +9,10 @@ along its column as semi-global matching does along one line, from above and fro
 + p2) - min_j L(r-1, xr, j)``,
 
 and the scanline programme (the match-sequence model, the occlusion rule and the slant steps
-of :mod:`.aggregate`) then runs on ``L_down + L_up - C``: a row's path sees what the rows above
-and below say at each disparity, with a smoothness price rather than a fixed window. All
+of :mod:`..window.aggregate`) then runs on ``L_down + L_up - C``: a row's path sees what the
+rows above and below say at each disparity, with a smoothness price rather than a fixed window. All
 values stay integers in float32 (doubled grey units), divided by ``q`` like
-:mod:`.aggregate`'s sums so that the programme's equality-based backtrack stays exact.
+:mod:`..window.aggregate`'s sums so that the programme's equality-based backtrack stays exact.
 
 Memory: the downward pass is kept, (H, W, nd) float32; the upward pass runs row by row and
 each row is matched as soon as its smoothed costs are complete. Rows run on one thread.
@@ -22,13 +22,17 @@ from __future__ import annotations
 
 import numpy as np
 
-from armstereo.reconstruct.birchfield.aggregate import cost_divisor, fill_outside
-from armstereo.reconstruct.birchfield.cost import INF, VARIATION_THRESHOLD, variation_flags
-from armstereo.reconstruct.birchfield.dp_exact import MAX_PIXEL_COST
-from armstereo.reconstruct.birchfield.dp_pruned import NO_VARIATION_PENALTY
-from armstereo.reconstruct.birchfield.jit import njit
-from armstereo.reconstruct.birchfield.matcher import _begin_row, _store_row
-from armstereo.reconstruct.birchfield.rows import _backtrack, _forward, _row_slab, _work_arrays
+from armstereo.reconstruct.birchfield.columns.rows import (
+    row_backtrack,
+    row_forward,
+    row_slab,
+    row_work_arrays,
+)
+from armstereo.reconstruct.birchfield.common.cost import INF, VARIATION_THRESHOLD, variation_flags
+from armstereo.reconstruct.birchfield.common.jit import njit
+from armstereo.reconstruct.birchfield.common.scanline import begin_row, store_row
+from armstereo.reconstruct.birchfield.common.states import MAX_PIXEL_COST, NO_VARIATION_PENALTY
+from armstereo.reconstruct.birchfield.window.aggregate import cost_divisor, fill_outside
 
 
 @njit(cache=True, inline="always")
@@ -55,7 +59,7 @@ def match_vertical(left3, right3, left, right, lmask, rmask, textured, dmin, nd,
                    slant, p1, p2, scale, q, disp, state, down, work):
     """Match every image row on column-smoothed costs (see the module doc).
 
-    Arguments as :func:`.aggregate.match_image_aggregated` (``occ``, ``rew``, ``slant``:
+    Arguments as :func:`..window.aggregate.match_image_aggregated` (``occ``, ``rew``, ``slant``:
     doubled per-pixel units, scaled by ``scale`` for the smoothed costs), plus ``p1``/``p2``
     (doubled units) and ``down``: an (H, W, nd) float32 work volume.
     """
@@ -78,13 +82,13 @@ def match_vertical(left3, right3, left, right, lmask, rmask, textured, dmin, nd,
     zero_rx = np.int64(0)
     for r in range(H):  # downward pass, kept
         if r == 0:
-            _row_slab(left, right, r, dmin, zero_rx, bl, br, raw, down[0])
+            row_slab(left, right, r, dmin, zero_rx, bl, br, raw, down[0])
         else:
-            _row_slab(left, right, r, dmin, zero_rx, bl, br, raw, cur)
+            row_slab(left, right, r, dmin, zero_rx, bl, br, raw, cur)
             _smooth_row(down[r - 1], cur, f1, f2, down[r])
     prev_up, this_up = up_a, up_b
     for r in range(H - 1, -1, -1):  # upward pass; each row matched when complete
-        _row_slab(left, right, r, dmin, zero_rx, bl, br, raw, cur)
+        row_slab(left, right, r, dmin, zero_rx, bl, br, raw, cur)
         if r == H - 1:
             for xr in range(W):
                 for k in range(nd):
@@ -96,7 +100,7 @@ def match_vertical(left3, right3, left, right, lmask, rmask, textured, dmin, nd,
             for k in range(nd):
                 total[xr, k] = dr[xr, k] + this_up[xr, k] - cur[xr, k]
         prev_up, this_up = this_up, prev_up
-        la, lb, r0, r1, x0, u1, ra, rb = _begin_row(lmask[r], rmask[r], dmin, nd, disp[r],
+        la, lb, r0, r1, x0, u1, ra, rb = begin_row(lmask[r], rmask[r], dmin, nd, disp[r],
                                                     state[r])
         if r1 <= r0 or u1 <= x0:
             continue
@@ -109,10 +113,10 @@ def match_vertical(left3, right3, left, right, lmask, rmask, textured, dmin, nd,
             pen_l[i] = occ_s if i < nx and gl[i] else occ_s + novar
             rew_x[i] = rew_s if i < nx and textured[r, r0 + dmin + i] else np.float32(0.0)
         slab = total[r0:r1]
-        _forward(slab, x_lo, nx, pen_l, gr, occ_s, novar, rew_x, slant_s, q, phi, rbest, a, dn)
-        if _backtrack(slab, x_lo, nx, phi, pen_l, gr, occ_s, novar, rew_x, slant_s, q,
+        row_forward(slab, x_lo, nx, pen_l, gr, occ_s, novar, rew_x, slant_s, q, phi, rbest, a, dn)
+        if row_backtrack(slab, x_lo, nx, phi, pen_l, gr, occ_s, novar, rew_x, slant_s, q,
                       match[:nx]):
-            _store_row(match[:nx], la, lb, r0, x_lo, dmin, dloc, sloc, disp[r], state[r])
+            store_row(match[:nx], la, lb, r0, x_lo, dmin, dloc, sloc, disp[r], state[r])
 
 
 def match_image_vertical(left: np.ndarray, right: np.ndarray, lmask: np.ndarray,
@@ -122,7 +126,7 @@ def match_image_vertical(left: np.ndarray, right: np.ndarray, lmask: np.ndarray,
     """Match (H, W) uint8 grey images on column-smoothed BT costs (doubled units: ``occ``,
     ``rew``, ``slant``, ``p1``, ``p2``; the penalties are multiplied by ``scale``, the
     smoothed costs' weight relative to one pixel's). Returns ``disp`` and ``state`` as
-    :func:`.aggregate.match_image_aggregated`."""
+    :func:`..window.aggregate.match_image_aggregated`."""
     H, W = left.shape
     bound = 2 * (MAX_PIXEL_COST + p2)  # down + up - C, each pass at most C + p2
     q = cost_divisor(W, max(scale, -(-bound // MAX_PIXEL_COST)), occ)
@@ -133,5 +137,5 @@ def match_image_vertical(left: np.ndarray, right: np.ndarray, lmask: np.ndarray,
     match_vertical(left[:, :, None], right[:, :, None], fl, fr, lmask, rmask,
                    np.ascontiguousarray(textured, np.bool_), dmin, nd, occ, rew, slant,
                    p1, p2, scale, q, out["disp"], out["state"],
-                   np.empty((H, W, nd), np.float32), _work_arrays(W, nd, 1))
+                   np.empty((H, W, nd), np.float32), row_work_arrays(W, nd, 1))
     return out

@@ -38,13 +38,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from armstereo.reconstruct.birchfield.cost import INF
-from armstereo.reconstruct.birchfield.dp_exact import VALID_BELOW
-from armstereo.reconstruct.birchfield.dp_pruned import C0
-from armstereo.reconstruct.birchfield.jit import njit
-from armstereo.reconstruct.birchfield.matcher import _store_row
-from armstereo.reconstruct.birchfield.minmax import max2, min2
-from armstereo.reconstruct.birchfield.simd import LANES, lanewise, vfloor, vmax, vmin
+from armstereo.reconstruct.birchfield.common.cost import INF
+from armstereo.reconstruct.birchfield.common.jit import njit
+from armstereo.reconstruct.birchfield.common.minmax import max2, min2
+from armstereo.reconstruct.birchfield.common.scanline import store_row
+from armstereo.reconstruct.birchfield.common.states import C0, VALID_BELOW
+from armstereo.reconstruct.birchfield.window.simd import LANES, lanewise, vfloor, vmax, vmin
 
 # rows of the (GEO, LANES) int64 geometry of a block: the valid runs of the left
 # (la, lb) and right (ra, rb) rows, the programme's ranges (r0, r1, x0, u1), active flag
@@ -86,7 +85,7 @@ def lane_forward(row0, rx, ry, dmin, q, geo, x_begin, x_end, pen_l, rew, pen_r, 
         here = d[x]
         for lane in range(LANES):
             if geo[ACTIVE, lane] and geo[R0, lane] == x:
-                _start_lane(here, lane, phi[x], phi[x + 1], rbest[x:x + nd])
+                start_lane(here, lane, phi[x], phi[x + 1], rbest[x:x + nd])
         if x + 1 < x_end:
             there = d[x + 1]
             _node_costs(b, x + 1, rx, ry, dmin, q, lims, col, ring, there)
@@ -122,7 +121,7 @@ def _node_costs(b, x, rx, ry, dmin, q, lims, col, ring, out):
 
 @njit(cache=True, nogil=True)
 def image_bounds(left_t, right_t, bounds):
-    """Doubled value and min/max of the half-samples (BT intervals, :mod:`.cost`) of every
+    """Doubled value and min/max of the half-samples (BT intervals, :mod:`..common.cost`) of every
     pixel of the filled grey images, transposed so that a block's rows are contiguous:
     ``bounds[i, x, j]``, ``i`` 0..2 left, 3..5 right. ``left_t``/``right_t`` (W, nj) uint8:
     the images transposed, ``[x, j]`` their row ``j - ry`` (clamped to the image; columns past
@@ -217,7 +216,7 @@ def _mask_divided(b, cost, x0, u1, u, inf, iq):
 
 
 @njit(cache=True, inline="always")
-def _start_lane(d, lane, before, first, rbest):
+def start_lane(d, lane, before, first, rbest):
     """A lane's first right pixel: nothing before it, its nodes start at ``C0`` plus their
     cost, no right occlusion yet (the one-row programme's initial state)."""
     inf = np.float32(INF)
@@ -272,7 +271,7 @@ def lane_backtrack(geo, phi, nodes, pen_l, rew, pen_r, slant, dmin, row0, ints, 
             # a negative dmin can give a lane more left pixels than the image has columns:
             # only the first W are decoded (as before ``ints`` was widened, when the walk
             # wrote the rest past the end of its row)
-            _store_row(match[:min2(nx, disp.shape[1])], geo[LA, lane], geo[LB, lane], r0,
+            store_row(match[:min2(nx, disp.shape[1])], geo[LA, lane], geo[LB, lane], r0,
                        x0 - r0, dmin, dloc, sloc, disp[r], state[r])
 
 

@@ -17,8 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from armstereo.reconstruct.birchfield.jit import njit
-from armstereo.reconstruct.birchfield.minmax import max2, min2
+from armstereo.reconstruct.birchfield.common.jit import njit
+from armstereo.reconstruct.birchfield.common.minmax import max2, min2
 
 INF = 1 << 29  # cost of an impossible node; sums of two stay below 2**31
 

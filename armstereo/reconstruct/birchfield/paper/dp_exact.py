@@ -28,13 +28,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from armstereo.reconstruct.birchfield.cost import INF, channel_costs
-from armstereo.reconstruct.birchfield.dp_pruned import C0, NO_VARIATION_PENALTY
-from armstereo.reconstruct.birchfield.jit import njit
-
-VALID_BELOW = INF // 2  # real path costs stay far below this; sums involving INF stay above
-EXACT_BELOW = 1 << 24  # float32 holds every integer below this exactly
-MAX_PIXEL_COST = 510  # doubled units: the largest dissimilarity of one channel
+from armstereo.reconstruct.birchfield.common.cost import INF, channel_costs
+from armstereo.reconstruct.birchfield.common.jit import njit
+from armstereo.reconstruct.birchfield.common.states import (
+    C0,
+    EXACT_BELOW,
+    MAX_PIXEL_COST,
+    NO_VARIATION_PENALTY,
+    VALID_BELOW,
+)
 
 
 def max_exact_width(channels: int, occ: int) -> int:
@@ -93,7 +95,7 @@ def scanline_dp_exact(lv, lmin, lmax, rv, rmin, rmax, x_lo, combine_max, gl, gr,
     """Best match sequence of one scanline; returns its cost (``INF`` if there is none).
 
     ``lv, lmin, lmax`` (C, nx) and ``rv, rmin, rmax`` (C, ny): doubled interval bounds of the
-    left/right pixels (:func:`.cost.interval_bounds`); left pixels below ``x_lo``
+    left/right pixels (:func:`..common.cost.interval_bounds`); left pixels below ``x_lo``
     take no part. ``gl``/``gr``: intensity-variation flags; ``occ``/``rew``: doubled occlusion
     penalty and match reward; ``phi``: (ny, nd) float32 work array (see the module doc).
     Output ``match[x]`` = right pixel matched to left pixel ``x``, or -1.

@@ -1,4 +1,5 @@
-"""Synthetic tabletop clouds with exact answers: an orthographic scan from straight above.
+"""Synthetic tabletop clouds with exact answers, for tests and benchmarks of the scene analysis:
+an orthographic scan from straight above.
 
 A vertical ray through every grid point (spacing ``spacing`` m) hits the highest surface of
 the scene's primitives (table rectangle, boxes, upright cylinders, spheres); that hit becomes a
@@ -14,7 +15,7 @@ import math
 import numpy as np
 
 from armstereo.evaluation.scene_truth import SceneTruth, TruthPrimitive
-from armstereo.scene import SceneCloud
+from armstereo.scene.cloud import SceneCloud
 from armstereo.transforms import make_T, rot_z
 
 TABLE_HALF = (0.25, 0.2)

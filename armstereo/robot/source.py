@@ -22,7 +22,7 @@ import json
 import logging
 from dataclasses import dataclass
 
-from armstereo.kinematics import ArmModel
+from armstereo.robot.arm_model import ArmModel
 
 log = logging.getLogger(__name__)
 
@@ -100,7 +100,7 @@ def kinematics_metadata(model: ArmModel, source: str | None = None) -> dict[str,
 
 def _bundled(model: ArmModel) -> bool:
     """True for a bundled nominal URDF (its FK is the nominal DH table's)."""
-    from armstereo.kinematics import MODELS_DIR
+    from armstereo.robot.arm_model import MODELS_DIR
 
     path = model.urdf_path
     return path is not None and path.resolve() == (MODELS_DIR / f"{model.name}.urdf").resolve()

@@ -24,16 +24,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from armstereo.reconstruct.birchfield.cost import INF
-from armstereo.reconstruct.birchfield.jit import njit
-
-C0 = 600  # reference code's start offset; keeps costs positive, does not change the optimum
-NO_VARIATION_PENALTY = 1000  # doubled units, as in the reference code: effectively forbids
-
-MATCHED = 0  # left pixel matched
-OCCLUDED = 1  # left pixel skipped by a left occlusion (seen only in the left image)
-BORDER = 2  # valid left pixel without a possible partner (outside the window or the other view)
-INVALID = 3  # left pixel outside its validity mask
+from armstereo.reconstruct.birchfield.common.cost import INF
+from armstereo.reconstruct.birchfield.common.jit import njit
+from armstereo.reconstruct.birchfield.common.states import C0, NO_VARIATION_PENALTY
 
 
 @njit(cache=True, inline="always")
@@ -139,37 +132,3 @@ def _backtrack(phi, back, nx, match):
         k = pk
     return best
 
-
-@njit(cache=True, inline="always")
-def decode_matches(match, disp, state):
-    """Per-left-pixel disparity index and state from ``match`` (reference-code decoding).
-
-    Matched pixels get their ``k``; left-occluded runs get the smaller (background) ``k`` of the
-    match before them; pixels before the first match get its ``k`` and state BORDER.
-    """
-    nx = match.shape[0]
-    first = -1
-    last_k = -1
-    for x in range(nx):
-        if match[x] >= 0:
-            last_k = x - match[x]
-            disp[x] = last_k
-            state[x] = MATCHED
-            if first < 0:
-                first = x
-        else:
-            disp[x] = last_k
-            state[x] = OCCLUDED if first >= 0 else BORDER
-    if first < 0:
-        for x in range(nx):
-            disp[x] = -1
-            state[x] = BORDER
-        return
-    for x in range(first):
-        disp[x] = first - match[first]
-    # trailing unmatched pixels cannot occur (the last left pixel is always matched) unless the
-    # caller cropped the row; treat them as border
-    for x in range(nx - 1, -1, -1):
-        if match[x] >= 0:
-            break
-        state[x] = BORDER

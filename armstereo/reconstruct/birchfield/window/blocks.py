@@ -9,9 +9,10 @@ transposes to that layout were ~2 ms of tsukuba's 7 ms matcher. The kernel is ke
 kernel, with the geometry and the flags inlined, was a third of the matcher's compile
 (bench/results/coldstart.md, dp_lanes.md).
 
-The values are those of the kernels: the same integer geometry (:func:`.matcher.longest_run`,
-:func:`.matcher.row_geometry`), the same intensity-variation flags (:func:`.cost.variation_flags`)
-and the same float32 penalties, so the programme sees identical inputs.
+The values are those of the kernels: the same integer geometry
+(:func:`..common.scanline.longest_run`, :func:`..common.scanline.row_geometry`), the same
+intensity-variation flags (:func:`..common.cost.variation_flags`) and the same float32
+penalties, so the programme sees identical inputs.
 """
 
 from __future__ import annotations
@@ -19,10 +20,11 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from armstereo.reconstruct.birchfield.cost import VARIATION_THRESHOLD
-from armstereo.reconstruct.birchfield.dp_pruned import BORDER, INVALID
-from armstereo.reconstruct.birchfield.jit import njit
-from armstereo.reconstruct.birchfield.lanes import (
+from armstereo.reconstruct.birchfield.common.cost import VARIATION_THRESHOLD
+from armstereo.reconstruct.birchfield.common.jit import njit
+from armstereo.reconstruct.birchfield.common.minmax import max2, min2
+from armstereo.reconstruct.birchfield.common.states import BORDER, INVALID
+from armstereo.reconstruct.birchfield.window.lanes import (
     ACTIVE,
     GEO,
     LA,
@@ -38,7 +40,6 @@ from armstereo.reconstruct.birchfield.lanes import (
     U1,
     X0,
 )
-from armstereo.reconstruct.birchfield.minmax import max2, min2
 
 _RUN3 = np.ones((1, 3), np.uint8)  # the 3-pixel window of the variation flags
 
@@ -58,7 +59,7 @@ def longest_runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             np.where(has, end + 1, 0).astype(np.int64))
 
 
-def _varies(img: np.ndarray, lo: np.ndarray, hi: np.ndarray, forward: bool,
+def variation_map(img: np.ndarray, lo: np.ndarray, hi: np.ndarray, forward: bool,
             out: np.ndarray | None = None) -> np.ndarray:
     """``out`` (H, W) uint8 (new if None), returned: 1 where the 3-pixel window at the pixel
     (``[x, x + 2]`` forward, ``[x - 2, x]`` backward, cut at the row's segment ``[lo, hi)``)
@@ -126,9 +127,9 @@ def block_setup(left: np.ndarray, right: np.ndarray, lmask: np.ndarray, rmask: n
     occ, novar = pens[OCC], pens[NOVAR]
     values = np.array([occ, occ + novar, pens[REW], 0], np.float32)
     flags = np.empty((3, H, W), np.uint8)
-    _varies(left, la, lb, True, flags[0])
+    variation_map(left, la, lb, True, flags[0])
     np.copyto(flags[1], textured)
-    _varies(right, ra, rb, False, flags[2])
+    variation_map(right, ra, rb, False, flags[2])
     lanes = np.empty((3, nb, n_u, LANES), np.float32)
     lanes[:, nb - 1, :, H - (nb - 1) * LANES:] = 0  # rows past H
     lane_penalties(edges, flags, dmin, values, lanes)

@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 
 from armstereo.errors import ConfigError, IKError, JointLimitError
-from armstereo.kinematics import (
+from armstereo.mount import CameraMount
+from armstereo.robot.arm_model import (
     JOINT_NAMES,
     MODEL_NAMES,
     ArmModel,
     ready_configuration,
 )
-from armstereo.mount import CameraMount
 from armstereo.transforms import invert, make_T, rot_x, rot_z
 from robot_models import MODELS_DIR
 
@@ -350,3 +350,11 @@ def test_custom_urdf_needs_base_fixed_to_the_root(tmp_path):
     moved.write_text(text)
     with pytest.raises(ConfigError, match="must be fixed to the root"):
         ArmModel.load(moved)
+
+
+def test_the_old_module_path_hands_on_the_same_model():
+    import armstereo.kinematics as old
+    import armstereo.robot.arm_model as new
+
+    assert old.ArmModel is new.ArmModel and old.ready_configuration is new.ready_configuration
+    assert all(getattr(old, name) is getattr(new, name) for name in old.__all__)

@@ -1,24 +1,23 @@
 """The per-row kernels of the aggregated programme: one scanline at a time.
 
-The default matcher runs the programme on blocks of rows (:mod:`.lanes`, driven by
-:func:`.aggregate.match_image_aggregated`); these one-row kernels remain for matchers that
-prepare each row's costs themselves (:mod:`.vertical` smooths them along the columns first).
-The programme and its exactness rule are described in :mod:`.aggregate` and :mod:`.lanes`;
-both compute the same paths from the same costs.
+The default matcher runs the programme on blocks of rows (:mod:`..window.lanes`, driven by
+:func:`..window.aggregate.match_image_aggregated`); these one-row kernels remain for matchers
+that prepare each row's costs themselves (:mod:`.vertical` smooths them along the columns
+first). The programme and its exactness rule are described in :mod:`..window.aggregate` and
+:mod:`..window.lanes`; both compute the same paths from the same costs.
 
-``_row_slab`` sums one image row's BT dissimilarities horizontally into a (W, nd) slab,
-``_forward`` runs the programme on a slab of summed costs, ``_backtrack`` walks back the
-cheapest path; ``_work_arrays`` allocates their work arrays in Python (numba's cold start).
+``row_slab`` sums one image row's BT dissimilarities horizontally into a (W, nd) slab,
+``row_forward`` runs the programme on a slab of summed costs, ``row_backtrack`` walks back the
+cheapest path; ``row_work_arrays`` allocates their work arrays in Python (numba's cold start).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from armstereo.reconstruct.birchfield.cost import INF
-from armstereo.reconstruct.birchfield.dp_exact import VALID_BELOW
-from armstereo.reconstruct.birchfield.dp_pruned import C0
-from armstereo.reconstruct.birchfield.jit import njit
+from armstereo.reconstruct.birchfield.common.cost import INF
+from armstereo.reconstruct.birchfield.common.jit import njit
+from armstereo.reconstruct.birchfield.common.states import C0, VALID_BELOW
 
 
 @njit(cache=True, inline="always")
@@ -44,7 +43,7 @@ def _bt_costs(lv, lmin, lmax, a, amin, amax, out):
 
 
 @njit(cache=True, fastmath=True, inner=True)
-def _row_slab(left, right, r, dmin, rx, lb, rbnd, raw, out):
+def row_slab(left, right, r, dmin, rx, lb, rbnd, raw, out):
     """``out[xr, k]``: sum over ``|dx| <= rx`` of the BT cost of right pixel ``xr + dx`` and left
     pixel ``xr + dx + dmin + k`` (columns clamped to the image) of image row ``r``."""
     W, nd = out.shape
@@ -90,8 +89,8 @@ def _row_slab(left, right, r, dmin, rx, lb, rbnd, raw, out):
 
 
 @njit(cache=True, fastmath=True, inner=True)
-def _forward(cost, x_lo, nx, pen_l, gr, occ, novar, rew, slant, q, phi, rbest, a, dn):
-    """The exact programme of :mod:`.dp_exact` on a (ny, nd) slab of summed costs, plus
+def row_forward(cost, x_lo, nx, pen_l, gr, occ, novar, rew, slant, q, phi, rbest, a, dn):
+    """The exact programme of :mod:`..paper.dp_exact` on a (ny, nd) slab of summed costs, plus
     one-pixel jumps (a slanted surface rather than an occlusion) at the penalty ``slant``,
     allowed with or without intensity variation: into ``(y + 1, k)`` from ``(y, k - 1)`` (one
     left pixel skipped) and from ``(y - 1, k + 1)`` (one right pixel skipped).
@@ -158,10 +157,10 @@ def _node(cost, y, k, q, iq):
 
 
 @njit(cache=True, inner=True)
-def _backtrack(cost, x_lo, nx, phi, pen_l, gr, occ, novar, rew, slant, q, match):
+def row_backtrack(cost, x_lo, nx, phi, pen_l, gr, occ, novar, rew, slant, q, match):
     """Walk back from the cheapest node at the last left pixel (ties: largest k); as in
-    :func:`.dp_exact._backtrack`, each step re-derived from the padded ``phi``
-    of :func:`_forward` (preference: no jump, one-pixel jumps, occlusions)."""
+    the backtrack of :mod:`..paper.dp_exact`, each step re-derived from the padded ``phi``
+    of :func:`row_forward` (preference: no jump, one-pixel jumps, occlusions)."""
     ny, nd = cost.shape
     iq = np.float32(1.0 / q)
     for x in range(match.shape[0]):
@@ -216,7 +215,7 @@ def _backtrack(cost, x_lo, nx, phi, pen_l, gr, occ, novar, rew, slant, q, match)
     return True
 
 
-def _work_arrays(W: int, nd: int, ry: int) -> tuple:
+def row_work_arrays(W: int, nd: int, ry: int) -> tuple:
     """Work arrays of a one-row matcher (as :mod:`.vertical` uses them), allocated here rather
     than in the kernel: every array type a kernel creates compiles its own allocation code
     (numba's cold start).

@@ -10,16 +10,16 @@ import pytest
 
 from armstereo import backends
 from armstereo.capture import CaptureSettings, plan_capture
-from armstereo.capture.kinematics import CaptureKinematics, choose_kinematics
 from armstereo.capture.run import model_metadata
 from armstereo.capture.session import capture_to_file
 from armstereo.cli.main import main
-from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
 from armstereo.recording import Recording
 from armstereo.recording.inspect import summarize
+from armstereo.robot.arm_model import ArmModel
 from armstereo.robot.dh import nominal_table
 from armstereo.robot.model_file import save_model_file
+from armstereo.robot.source import CaptureKinematics, choose_kinematics
 from armstereo.robot.synthetic import synthetic_calibration
 from drivers.ur.primary import ArmKinematics
 

@@ -5,7 +5,7 @@ independently (streaks) and every noise-level cost difference counts. Here the n
 ``(right pixel xr, disparity index k)`` is the *sum* of the Birchfield-Tomasi dissimilarities
 over a ``(2 ry + 1) x (2 rx + 1)`` window around it at the same disparity; the match-sequence
 model, the occlusion rule (jumps only next to intensity variation) and the exact programme are
-those of :mod:`.dp_exact`, with the penalties scaled by the window's pixel count so that they
+those of :mod:`..paper.dp_exact`, with the penalties scaled by the window's pixel count so that they
 keep their per-pixel meaning. A one-pixel disparity step may also cost a smaller ``slant``
 penalty, without intensity variation (a slanted surface rather than an occlusion).
 
@@ -19,7 +19,7 @@ step inlined (bench/results/dp_lanes.md, coldstart.md). For windows one column w
 default 1x3 and the paper's 1x1) the forward kernel is :mod:`.fused`'s, which does a node's
 cost and step in one loop of LLVM IR. Pixels outside the validity masks
 take part in the sums with the edge-replicated values the caller fills in (a row's programme
-itself only uses its valid run, as in :mod:`.matcher`).
+itself only uses its valid run, as in :mod:`..common.scanline`).
 
 The reward for a match can be withheld per left pixel (``textured``): matching a featureless
 pixel then gains nothing, so the programme has no reason to bend its path through a black gap
@@ -36,12 +36,17 @@ from concurrent.futures import ThreadPoolExecutor
 import cv2
 import numpy as np
 
-from armstereo.reconstruct.birchfield.blocks import block_setup
-from armstereo.reconstruct.birchfield.cost import INF
-from armstereo.reconstruct.birchfield.dp_exact import EXACT_BELOW, MAX_PIXEL_COST
-from armstereo.reconstruct.birchfield.dp_pruned import BORDER, C0, NO_VARIATION_PENALTY
-from armstereo.reconstruct.birchfield.fused import FUSED_MAX_RY, lane_forward_column
-from armstereo.reconstruct.birchfield.lanes import (
+from armstereo.reconstruct.birchfield.common.cost import INF
+from armstereo.reconstruct.birchfield.common.states import (
+    BORDER,
+    C0,
+    EXACT_BELOW,
+    MAX_PIXEL_COST,
+    NO_VARIATION_PENALTY,
+)
+from armstereo.reconstruct.birchfield.window.blocks import block_setup
+from armstereo.reconstruct.birchfield.window.fused import FUSED_MAX_RY, lane_forward_column
+from armstereo.reconstruct.birchfield.window.lanes import (
     LANES,
     SLANT,
     image_bounds,
@@ -89,7 +94,7 @@ def match_image_aggregated(left: np.ndarray, right: np.ndarray, lmask: np.ndarra
     ``occ``/``rew``/``slant``: doubled per-pixel occlusion penalty, match reward and
     one-pixel-jump penalty (-1: none); ``textured``: (H, W) bool, left pixels that earn the
     reward (None: all). Returns ``disp`` (H, W) int32 window indices (-1 = none) and ``state``
-    (H, W) uint8 as :func:`armstereo.reconstruct.birchfield.matcher.match_rows`. Blocks of
+    (H, W) uint8 as :func:`armstereo.reconstruct.birchfield.paper.matcher.match_rows`. Blocks of
     :data:`.lanes.LANES` rows run on ``threads`` threads, each thread setting up and matching
     one chunk of blocks after another (:func:`block_strips`; up to CHUNKS_PER_THREAD per
     thread, each at least MIN_CHUNK_BLOCKS blocks):

@@ -23,8 +23,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from armstereo.reconstruct.birchfield.cost import VARIATION_THRESHOLD
-from armstereo.reconstruct.birchfield.jit import njit
+from armstereo.reconstruct.birchfield.common.cost import VARIATION_THRESHOLD
+from armstereo.reconstruct.birchfield.common.jit import njit
 
 TH_RELIABLE = 14  # reference code's reliability threshold ...
 ALPHA = 0.15  # ... and its tolerance

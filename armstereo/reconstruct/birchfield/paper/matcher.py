@@ -1,8 +1,10 @@
-"""All scanlines of a rectified pair: validity masks, disparity window, rows on threads.
+"""All scanlines of a rectified pair on the paper's single-pixel costs, rows on threads.
 
-Row ``r`` is matched on the longest run of valid pixels of each image. With the window
-``[dmin, dmin + nd - 1]`` the left pixel ``xL`` is indexed by ``u = xL - dmin`` so that the
-scanline programme of :mod:`.dp` sees disparity indices ``k = u - xR`` in ``[0, nd)``.
+The route of the options the default window path does not take: colour costs
+(``color="sum"``/``"max"``: :func:`.dp_exact.scanline_dp_exact`) and the reference code's
+pruned search (``search="pruned"``: :func:`.dp_pruned.scanline_dp`; ``DP_FULL``, its unpruned
+form, is the tests' oracle). Each row is set up and decoded as every route does it
+(:mod:`..common.scanline`: the longest valid runs, the disparity window, the decoding).
 
 Rows are independent; :func:`match_image` runs the compiled row loop (``nogil``) on a few
 Python threads over interleaved rows, not on numba's parallel layer (``prange``): OpenMP
@@ -17,54 +19,21 @@ from concurrent.futures import ThreadPoolExecutor
 import numba
 import numpy as np
 
-from armstereo.reconstruct.birchfield.cost import (
+from armstereo.reconstruct.birchfield.common.cost import (
     INF,
     VARIATION_THRESHOLD,
     dissimilarity_table,
     interval_bounds,
     variation_flags,
 )
-from armstereo.reconstruct.birchfield.dp_exact import scanline_dp_exact
-from armstereo.reconstruct.birchfield.dp_pruned import BORDER, INVALID, decode_matches, scanline_dp
-from armstereo.reconstruct.birchfield.jit import njit
-from armstereo.reconstruct.birchfield.minmax import max2, min2
+from armstereo.reconstruct.birchfield.common.jit import njit
+from armstereo.reconstruct.birchfield.common.scanline import begin_row, store_row
+from armstereo.reconstruct.birchfield.paper.dp_exact import scanline_dp_exact
+from armstereo.reconstruct.birchfield.paper.dp_pruned import scanline_dp
 
-DP_EXACT = 0  # exact O(n nd) programme (default)
+DP_EXACT = 0  # exact O(n nd) programme
 DP_PRUNED = 1  # reference code's pruned search
 DP_FULL = 2  # unpruned push search, O(n nd^2): an oracle
-
-
-@njit(cache=True, inline="always")
-def longest_run(valid):
-    """``(start, stop)`` of the longest run of True in ``valid`` (``(0, 0)`` if none)."""
-    best_a = 0
-    best_b = 0
-    a = -1
-    n = valid.shape[0]
-    for i in range(n + 1):
-        if i < n and valid[i]:
-            if a < 0:
-                a = i
-        elif a >= 0:
-            if i - a > best_b - best_a:
-                best_a = a
-                best_b = i
-            a = -1
-    return best_a, best_b
-
-
-@njit(cache=True, inline="always")
-def row_geometry(la, lb, ra, rb, dmin, nd):
-    """Right pixels ``[r0, r1)`` and shifted left pixels ``[x0, u1)`` that can take part.
-
-    Left pixel ``u`` (= xL - dmin) can match right pixels ``u - nd + 1 .. u`` only.
-    """
-    u0 = la - dmin
-    u1 = min2(lb - dmin, rb + nd - 1)
-    r0 = max2(ra, u0 - nd + 1)
-    r1 = min2(rb, u1)
-    x0 = max2(u0, r0)
-    return r0, r1, x0, u1
 
 
 @njit(cache=True, inner=True)
@@ -89,55 +58,22 @@ def _row_bounds(left, right, la, lb, ra, rb, r0, r1, x0, u1, dmin, gl, gr):
     return lv, lmin, lmax, rv, rmin, rmax
 
 
-@njit(cache=True, inner=True)
-def _begin_row(lmask_row, rmask_row, dmin, nd, disp_row, state_row):
-    """Reset one row's outputs; returns ``(la, lb, r0, r1, x0, u1, ra, rb)``: the valid runs
-    and the geometry of :func:`row_geometry`."""
-    # plain loops: numba compiles a slice assignment into far more code (cold start)
-    for x in range(disp_row.shape[0]):
-        disp_row[x] = -1
-        state_row[x] = INVALID
-    la, lb = longest_run(lmask_row)
-    ra, rb = longest_run(rmask_row)
-    for x in range(la, lb):
-        state_row[x] = BORDER
-    r0, r1, x0, u1 = row_geometry(la, lb, ra, rb, dmin, nd)
-    return la, lb, r0, r1, x0, u1, ra, rb
-
-
-@njit(cache=True, inner=True)
-def _store_row(match, la, lb, r0, x_lo, dmin, dloc, sloc, disp_row, state_row):
-    """Decode one row's match sequence (local coordinates) into the image row."""
-    nx = match.shape[0]
-    decode_matches(match, dloc[:nx], sloc[:nx])
-    off = r0 + dmin  # image column of local left pixel 0
-    for x in range(x_lo, nx):
-        disp_row[off + x] = dloc[x]
-        state_row[off + x] = sloc[x]
-    # valid left pixels that cannot be matched keep BORDER and take the nearest decoded
-    # disparity (the reference code's dense border policy)
-    for x in range(la, min2(off + x_lo, disp_row.shape[0])):
-        disp_row[x] = dloc[x_lo]
-    for x in range(off + nx, min2(lb, disp_row.shape[0])):
-        disp_row[x] = dloc[nx - 1]
-
-
 @njit(cache=True, nogil=True)
 def match_rows(left, right, lmask, rmask, rows, dmin, nd, occ, rew, combine_max, disp, state):
     """Match the rows ``rows`` of (H, W, C) uint8 images with the exact programme.
 
     Fills (H, W) int32 ``disp`` with the window index ``k`` (disparity ``dmin + k``, -1 = none)
-    and uint8 ``state`` (MATCHED / OCCLUDED / BORDER / INVALID of :mod:`.dp`).
+    and uint8 ``state`` (MATCHED / OCCLUDED / BORDER / INVALID of :mod:`..common.states`).
     """
     W = left.shape[1]
-    phi = np.empty((W, nd), np.float32)  # work array of dp_fast
+    phi = np.empty((W, nd), np.float32)  # work array of scanline_dp_exact
     gl = np.empty(W, np.bool_)
     gr = np.empty(W, np.bool_)
     match = np.empty(W, np.int32)
     dloc = np.empty(W, np.int32)
     sloc = np.empty(W, np.uint8)
     for r in rows:
-        la, lb, r0, r1, x0, u1, ra, rb = _begin_row(lmask[r], rmask[r], dmin, nd, disp[r],
+        la, lb, r0, r1, x0, u1, ra, rb = begin_row(lmask[r], rmask[r], dmin, nd, disp[r],
                                                     state[r])
         if r1 <= r0 or u1 <= x0:
             continue
@@ -147,13 +83,13 @@ def match_rows(left, right, lmask, rmask, rows, dmin, nd, occ, rew, combine_max,
         cost = scanline_dp_exact(b[0], b[1], b[2], b[3], b[4], b[5], x_lo, combine_max,
                                  gl[:nx], gr[:ny], occ, rew, phi[:ny], match[:nx])
         if cost < INF:
-            _store_row(match[:nx], la, lb, r0, x_lo, dmin, dloc, sloc, disp[r], state[r])
+            store_row(match[:nx], la, lb, r0, x_lo, dmin, dloc, sloc, disp[r], state[r])
 
 
 @njit(cache=True, nogil=True)
 def match_rows_search(left, right, lmask, rmask, rows, dmin, nd, occ, rew, combine_max,
                       prune, disp, state):
-    """:func:`match_rows` with the search programme of :mod:`.dp`: the reference code's
+    """:func:`match_rows` with the search programme of :mod:`.dp_pruned`: the reference code's
     pruned search, or (``prune=False``) the unpruned O(n nd^2) one. A separate function so
     that the default path does not compile it."""
     W = left.shape[1]
@@ -163,7 +99,7 @@ def match_rows_search(left, right, lmask, rmask, rows, dmin, nd, occ, rew, combi
     dloc = np.empty(W, np.int32)
     sloc = np.empty(W, np.uint8)
     for r in rows:
-        la, lb, r0, r1, x0, u1, ra, rb = _begin_row(lmask[r], rmask[r], dmin, nd, disp[r],
+        la, lb, r0, r1, x0, u1, ra, rb = begin_row(lmask[r], rmask[r], dmin, nd, disp[r],
                                                     state[r])
         if r1 <= r0 or u1 <= x0:
             continue
@@ -175,7 +111,7 @@ def match_rows_search(left, right, lmask, rmask, rows, dmin, nd, occ, rew, combi
         cost = scanline_dp(dis, gl[:nx], gr[:ny], occ, rew, prune, np.empty((ny, nd), np.int32),
                            np.empty((ny, nd), np.int16), match[:nx])
         if cost < INF:
-            _store_row(match[:nx], la, lb, r0, x_lo, dmin, dloc, sloc, disp[r], state[r])
+            store_row(match[:nx], la, lb, r0, x_lo, dmin, dloc, sloc, disp[r], state[r])
 
 
 def match_image(left: np.ndarray, right: np.ndarray, lmask: np.ndarray, rmask: np.ndarray,

@@ -24,11 +24,11 @@ from llvmlite import ir
 from numba.core import cgutils, types
 from numba.extending import intrinsic
 
-from armstereo.reconstruct.birchfield.cost import INF
-from armstereo.reconstruct.birchfield.jit import njit
-from armstereo.reconstruct.birchfield.lanes import ACTIVE, R0, U1, X0, _start_lane
-from armstereo.reconstruct.birchfield.minmax import max2, min2
-from armstereo.reconstruct.birchfield.simd import LANES, vfloor, vmax, vmin
+from armstereo.reconstruct.birchfield.common.cost import INF
+from armstereo.reconstruct.birchfield.common.jit import njit
+from armstereo.reconstruct.birchfield.common.minmax import max2, min2
+from armstereo.reconstruct.birchfield.window.lanes import ACTIVE, R0, U1, X0, start_lane
+from armstereo.reconstruct.birchfield.window.simd import LANES, vfloor, vmax, vmin
 
 FUSED_MAX_RY = 1  # window rows 2 ry + 1 handled here (one intrinsic pair per ry is compiled)
 
@@ -67,7 +67,7 @@ def lane_forward_column(row0, ry, dmin, q, geo, x_begin, x_end, pen_l, rew, pen_
         if first <= x <= last:
             for lane in range(LANES):
                 if geo[ACTIVE, lane] and geo[R0, lane] == x:
-                    _start_lane(d[x], lane, phi[x], phi[x + 1], rbest[x:x + nd])
+                    start_lane(d[x], lane, phi[x], phi[x + 1], rbest[x:x + nd])
         if x + 1 < x_end:
             if ry == 0:
                 _step_ry0(arrays, (x + 1, row0, dmin, divided), (slant, iq))
