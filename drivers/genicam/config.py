@@ -5,8 +5,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from armstereo.backends import option
 from armstereo.errors import ConfigError
+from armstereo.flags import option
 from armstereo.validate import number, positive
 from drivers.opencv.config import parse_resolution
 

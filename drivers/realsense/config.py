@@ -8,8 +8,8 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from armstereo.backends import option
 from armstereo.errors import ConfigError
+from armstereo.flags import option
 from armstereo.validate import positive, whole
 from drivers.opencv.config import parse_resolution
 
