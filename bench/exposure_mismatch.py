@@ -11,7 +11,7 @@ views see, and density (share of those pixels with a depth).
 Tuning data: the desk scene (photographed textures, the realistic profile's). Held out: the
 table scene (band-limited textures), never looked at while choosing the tolerance.
 
-    .venv/bin/python bench/exposure_mismatch.py [--seeds 0 1] [--out bench/results/...md]
+    .venv/bin/python -m bench.exposure_mismatch [--seeds 0 1] [--out bench/results/...md]
 """
 
 from __future__ import annotations
@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+import bench.harness as harness
 from armstereo.apps.demo import score_reconstruction
 from armstereo.reconstruct.pipeline import reconstruct_pair
 from armstereo.recording import Recording
@@ -146,14 +147,14 @@ def tolerances(results: dict) -> list[str]:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
-    ap.add_argument("--out", type=Path, default=Path("bench/results/exposure_mismatch.md"))
+    ap.add_argument("--out", type=Path, default=harness.RESULTS / "exposure_mismatch.md")
     args = ap.parse_args()
     t0 = time.perf_counter()
     results = run(args.seeds)
     head = [
         "# What a brightness or white-balance difference between the views costs the matcher",
         "",
-        f"`.venv/bin/python bench/exposure_mismatch.py --seeds {' '.join(map(str, args.seeds))}`"
+        f"`{harness.command_line('bench.exposure_mismatch')}`"
         ": one mock pair per scene and seed (UR5e, 80 mm baseline, every error source off but "
         "1 grey level of sensor noise); the right view is then made brighter by the factor "
         "given (exposure x gain), or only its red channel (a white-balance shift). Cells: median "
@@ -161,10 +162,9 @@ def main() -> int:
         "brackets), and the density. The desk scene chose the tolerance; the table scene was "
         "held out.", ""]
     foot = [f"{len(results)} cells x {len(args.seeds)} seeds, "
-            f"{time.perf_counter() - t0:.0f} s on a shared 2-core machine."]
+            f"{time.perf_counter() - t0:.0f} s on a shared machine: {harness.machine_note()}"]
     body = table(results, args.seeds) + tolerances(results)
-    args.out.write_text("\n".join(head + body + foot) + "\n")
-    print(args.out)
+    harness.write_report("\n".join(head + body + foot) + "\n", args.out)
     return 0
 
 
