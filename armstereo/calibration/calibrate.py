@@ -18,7 +18,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from armstereo.calibration.board import Board, Detection, detect_board
-from armstereo.calibration.checks import CalibrationInputError, usable_views
+from armstereo.calibration.checks import (
+    MIN_CORNER_SPACING_PX,
+    CalibrationInputError,
+    usable_views,
+)
 from armstereo.calibration.handeye import (
     HandEyeEstimate,
     check_diversity,
@@ -28,7 +32,6 @@ from armstereo.calibration.handeye import (
 )
 from armstereo.calibration.intrinsics import (
     board_pose,
-    calibrate_intrinsics,
     check_distortion_model,
 )
 from armstereo.calibration.mount_file import mount_toml
@@ -43,6 +46,7 @@ from armstereo.calibration.report import (
     plausibility_warnings,
     view_warnings,
 )
+from armstereo.calibration.screening import add_screening, check_fit, screen_session
 from armstereo.camera_model import Intrinsics
 from armstereo.errors import ConfigError
 from armstereo.kinematics import ArmModel
@@ -67,7 +71,8 @@ class CalibrationOptions:
     the hand-eye by millimetres). ``pose_error``: prior for the arm's pose error (its sigmas
     are re-estimated from the data); None trusts forward kinematics exactly.
     ``working_distance_m``: for the error's effect on a scan (default: the median board
-    distance of the views).
+    distance of the views). ``screen_views``: leave out views whose image disagrees with
+    their pose or whose corners are misread (screening.py); False keeps every usable view.
     """
 
     distortion_model: str = "k1k2"
@@ -75,6 +80,7 @@ class CalibrationOptions:
     pose_error: PoseErrorPrior | None = field(default_factory=PoseErrorPrior)
     leave_one_out: bool = True
     working_distance_m: float | None = None
+    screen_views: bool = True
     mount_name: str = "calibrated_camera"
 
 
@@ -137,12 +143,12 @@ def calibrate_from_detections(detections: Sequence[Detection | None],
     views, warnings = usable_views(detections)
     dets = [detections[i] for i in views]
     flanges = [as_rigid(T_base_flange[i], f"T_base_flange of view {i}") for i in views]
-
-    if intrinsics is None:
-        intr_fit = calibrate_intrinsics(dets, size, distortion_model=options.distortion_model)
-        intr0 = intr_fit.intrinsics
-    else:
-        intr_fit, intr0 = None, intrinsics
+    screened = screen_session(views, dets, flanges, board, size, given=intrinsics,
+                              distortion_model=options.distortion_model,
+                              screen=options.screen_views)
+    views, dets, flanges = screened.views, screened.detections, screened.flanges
+    warnings += screened.warnings
+    intr_fit, intr0 = screened.intrinsics_fit, screened.intrinsics
     T_cb = [board_pose(d, intr0) for d in dets]
 
     pairs = motion_pairs(flanges, T_cb)
@@ -160,6 +166,7 @@ def calibrate_from_detections(detections: Sequence[Detection | None],
     refined = refine_hand_eye(dets, flanges, X0, B0, intr0, pose_error=options.pose_error,
                               refine_intrinsics=refine_k,
                               distortion_model=options.distortion_model)
+    check_fit(refined.intrinsics, intr0, refined.rms_px, intrinsics_given=intrinsics is not None)
     loo = None
     if options.leave_one_out:
         loo = leave_one_out(dets, flanges, refined, trusts_arm=options.pose_error is None,
@@ -177,6 +184,7 @@ def calibrate_from_detections(detections: Sequence[Detection | None],
     report = _report(board, len(detections), views, detections, intr_fit, intrinsics,
                      refined, closed, diversity, loo, flanges, T_cb_final, work_d, warnings,
                      options)
+    add_screening(report, screened)
     comments = _mount_comments(board, views, refined, loo)
     text = mount_toml(options.mount_name, refined.T_flange_camera, refined.intrinsics, comments)
     mount = CameraMount(options.mount_name, refined.T_flange_camera, refined.intrinsics, text)
@@ -201,7 +209,7 @@ def _report(board: Board, n_recorded: int, views: list[int],
             "used": views,
             "board_not_found": [i for i, d in enumerate(detections) if d is None],
             "board_too_small": [i for i, d in enumerate(detections)
-                                if d is not None and i not in views],
+                                if d is not None and d.spacing_px < MIN_CORNER_SPACING_PX],
         },
         "intrinsics": {
             "source": "given" if given is not None else "estimated",
