@@ -166,7 +166,10 @@ def calibrate_from_detections(detections: Sequence[Detection | None],
     refined = refine_hand_eye(dets, flanges, X0, B0, intr0, pose_error=options.pose_error,
                               refine_intrinsics=refine_k,
                               distortion_model=options.distortion_model)
-    check_fit(refined.intrinsics, intr0, refined.rms_px, intrinsics_given=intrinsics is not None)
+    modelled = options.pose_error is not None
+    check_fit(refined.intrinsics, intr0, refined.rms_px, intrinsics_given=intrinsics is not None,
+              arm_error_m=refined.pose_sigma_t if modelled else 0.0,
+              arm_error_deg=float(np.degrees(refined.pose_sigma_r)) if modelled else 0.0)
     loo = None
     if options.leave_one_out:
         loo = leave_one_out(dets, flanges, refined, trusts_arm=options.pose_error is None,

@@ -48,8 +48,10 @@ MAX_HYPOTHESES = 120  # triples tried (all of them when there are fewer)
 THRESHOLD_FACTOR = 5.0  # times the median prediction error
 MIN_THRESHOLD_MM = 5.0  # never tighter: good views of a sloppy arm spread by a few mm
 LO_ROUNDS = 5
-CORNER_FACTOR = 5.0  # a view fitting the intrinsics this many times worse than the median...
+CORNER_FACTOR = 4.0  # a view fitting the intrinsics this many times worse than the median...
 MIN_CORNER_RMS_PX = 1.0  # ... and worse than this: its corners are misread
+CORNER_OUTLIER_FACTOR = 10.0  # or a corner this many times the median corner error away...
+MIN_CORNER_OUTLIER_PX = 3.0  # ... and at least this far: a corner read at the wrong spot
 STALE_PX = 0.5  # corners of two views this close (RMS px): the same image twice
 
 
@@ -87,13 +89,22 @@ class Screening:
     notes: list[str] = field(default_factory=list)
 
 
-def corner_outliers(per_view_rms_px: np.ndarray) -> list[int]:
-    """Positions of views whose corners fit the camera model far worse than the others'."""
+def corner_outliers(per_view_rms_px: np.ndarray,
+                    corner_errors_px: Sequence[np.ndarray] | None = None) -> list[int]:
+    """Positions of views whose corners fit the camera model far worse than the others': a
+    view RMS over CORNER_FACTOR times the median, or single corners over
+    CORNER_OUTLIER_FACTOR times the median corner error (``corner_errors_px``: per view,
+    each corner's reprojection error under the intrinsics fit)."""
     rms = np.asarray(per_view_rms_px, float)
     if len(rms) < 3:
         return []
     limit = max(MIN_CORNER_RMS_PX, CORNER_FACTOR * float(np.median(rms)))
-    return [int(i) for i in np.flatnonzero(rms > limit)]
+    bad = set(np.flatnonzero(rms > limit).tolist())
+    if corner_errors_px is not None:
+        med = float(np.median(np.concatenate([np.asarray(e) for e in corner_errors_px])))
+        worst = max(MIN_CORNER_OUTLIER_PX, CORNER_OUTLIER_FACTOR * med)
+        bad |= {k for k, e in enumerate(corner_errors_px) if np.max(e) > worst}
+    return sorted(int(k) for k in bad)
 
 
 def screen_views(detections: Sequence[Detection], T_base_flange: Sequence[np.ndarray],

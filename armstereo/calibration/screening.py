@@ -20,7 +20,11 @@ import numpy as np
 from armstereo.calibration.board import Board, Detection
 from armstereo.calibration.checks import MIN_VIEWS, CalibrationInputError
 from armstereo.calibration.consensus import BadView, corner_outliers, screen_views
-from armstereo.calibration.intrinsics import IntrinsicsFit, calibrate_intrinsics
+from armstereo.calibration.intrinsics import (
+    IntrinsicsFit,
+    calibrate_intrinsics,
+    reprojection_errors,
+)
 from armstereo.camera_model import Intrinsics
 
 log = logging.getLogger(__name__)
@@ -30,6 +34,10 @@ log = logging.getLogger(__name__)
 MAX_FOCAL_CHANGE = 0.25  # relative
 MAX_ASPECT_DEVIATION = 0.1  # |fy / fx - 1|
 MAX_FIT_RMS_PX_PER_KPX = 5.0  # corner RMS allowed per 1000 px of image width (at least 5 px)
+# Estimated per-view error of the arm's poses beyond which they are no arm's error but poses
+# that do not belong to their images (nominal UR kinematics stay well under 5 mm / 0.5 deg).
+MAX_ARM_ERROR_M = 0.01
+MAX_ARM_ERROR_DEG = 1.0
 
 
 @dataclass
@@ -61,11 +69,14 @@ def screen_session(views: Sequence[int], detections: Sequence[Detection],
     left_out: list[BadView] = []
     fit = _fit(dets, size, given, distortion_model)
     if screen and fit is not None:
-        bad = corner_outliers(fit.per_view_rms_px)
+        corner_err = [reprojection_errors(d, fit.intrinsics, T)
+                      for d, T in zip(dets, fit.T_camera_board, strict=True)]
+        bad = corner_outliers(fit.per_view_rms_px, corner_err)
         if bad and len(dets) - len(bad) >= MIN_VIEWS:
             left_out += [BadView(views[k], "corners_misread", f"its corners fit the camera "
-                                 f"model with {fit.per_view_rms_px[k]:.2f} px RMS (median "
-                                 f"{np.median(fit.per_view_rms_px):.2f}): misdetected "
+                                 f"model with {fit.per_view_rms_px[k]:.2f} px RMS, worst "
+                                 f"{np.max(corner_err[k]):.1f} px (median view "
+                                 f"{np.median(fit.per_view_rms_px):.2f} px): misdetected "
                                  "corners, blur or glare", float(fit.per_view_rms_px[k]),
                                  float("nan")) for k in bad]
             views, dets, flanges = _keep(views, dets, flanges, set(range(len(dets))) - set(bad))
@@ -118,9 +129,14 @@ def _require_enough(views: list[int], left_out: list[BadView]) -> None:
 
 
 def check_fit(intr: Intrinsics, start: Intrinsics, rms_px: float, *,
-              intrinsics_given: bool) -> None:
-    """CalibrationInputError (exit 2) when the refined camera or the fit is implausible."""
+              intrinsics_given: bool, arm_error_m: float = 0.0,
+              arm_error_deg: float = 0.0) -> None:
+    """CalibrationInputError (exit 2) when the refined camera or the fit is implausible
+    (``arm_error_*``: the estimated per-view pose error of the arm, sigma per axis)."""
     problems = []
+    if arm_error_m > MAX_ARM_ERROR_M or arm_error_deg > MAX_ARM_ERROR_DEG:
+        problems.append(f"the poses disagree with the images by {arm_error_m * 1000:.0f} mm "
+                        f"and {arm_error_deg:.2f} deg per view")
     f0 = (start.fx + start.fy) / 2
     for name, f in (("fx", intr.fx), ("fy", intr.fy)):
         if not np.isfinite(f) or abs(f / f0 - 1) > MAX_FOCAL_CHANGE:
