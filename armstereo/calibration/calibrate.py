@@ -42,8 +42,11 @@ from armstereo.calibration.report import (
     arm_error_warnings,
     board_pose_spread,
     error_effects,
+    held_out_prediction,
     leave_one_out,
     plausibility_warnings,
+    pose_noise_warnings,
+    prediction_mm,
     view_warnings,
 )
 from armstereo.calibration.screening import add_screening, check_fit, screen_session
@@ -177,8 +180,15 @@ def calibrate_from_detections(detections: Sequence[Detection | None],
     warnings += view_warnings(refined.per_view_rms_px, views)
     if options.pose_error is not None:
         warnings += arm_error_warnings(refined.pose_sigma_t, float(np.degrees(
-            refined.pose_sigma_r)), loo.held_out_rms_all_px if loo else None, refined.rms_px)
+            refined.pose_sigma_r)), None, refined.rms_px)
     warnings += plausibility_warnings(refined.T_flange_camera)
+    fit_mm = np.array([prediction_mm(d, F, refined.T_flange_camera, refined.T_base_board,
+                                     refined.intrinsics) for d, F in zip(dets, flanges,
+                                                                         strict=True)])
+    if loo is not None:
+        warnings += pose_noise_warnings(_rms_of(loo.held_out_mm), _rms_of(fit_mm),
+                                        loo.translation_m, loo.held_out_rms_all_px,
+                                        refined.rms_px)
 
     T_cb_final = [board_pose(d, refined.intrinsics) for d in dets]
     distances = [float(np.linalg.norm((C @ np.append(board.center, 1.0))[:3]))
@@ -188,6 +198,9 @@ def calibrate_from_detections(detections: Sequence[Detection | None],
                      refined, closed, diversity, loo, flanges, T_cb_final, work_d, warnings,
                      options)
     add_screening(report, screened)
+    if loo is not None:
+        report["quality"]["held_out_prediction"] = held_out_prediction(loo, fit_mm)
+        report["quality"]["predicted_error"]["held_out_prediction_mm"] = _rms_of(loo.held_out_mm)
     comments = _mount_comments(board, views, refined, loo)
     text = mount_toml(options.mount_name, refined.T_flange_camera, refined.intrinsics, comments)
     mount = CameraMount(options.mount_name, refined.T_flange_camera, refined.intrinsics, text)
@@ -276,6 +289,10 @@ def _closed_entry(est: HandEyeEstimate, X_refined: np.ndarray) -> dict:
             "residual_rotation_deg": est.residual_rotation_deg,
             "residual_translation_m": est.residual_translation_m,
             "difference_to_refined": {"translation_m": dt, "rotation_deg": dr}}
+
+
+def _rms_of(v) -> float:
+    return float(np.sqrt(np.mean(np.square(v)))) if len(v) else 0.0
 
 
 def _rms_norm(v: np.ndarray) -> float:

@@ -185,3 +185,23 @@ def test_unscreened_bad_poses_with_held_intrinsics_are_refused(session):
     cal = calibrate_from_detections(session.detections, flanges, BOARD, SIZE,
                                     intrinsics=session.true_mount.intrinsics)
     assert sorted(_left_out(cal)) == [1, 4, 8]
+
+
+def test_poses_noisier_than_the_images_are_said_in_millimetres(ur5e):
+    """Nominal kinematics plus a millimetre of pose noise per view: the held-out prediction
+    error is reported beside the fit's in mm, the warning says so in mm, and the predicted
+    error covers the truth."""
+    s = simulate_session(ur5e, BOARD, arm_error="nominal_kinematics", seed=2, n_views=N_VIEWS)
+    rng = np.random.default_rng(3)
+    flanges = [F @ exp6(np.r_[rng.normal(size=3) * 0.0005, rng.normal(size=3) * 0.001])
+               for F in s.T_base_flange_reported]
+    cal = _run(s.detections, flanges)
+    held = cal.report["quality"]["held_out_prediction"]
+    assert held["rms_mm"] > 1.0 and held["fit_rms_mm"] > 0.5
+    assert len(held["per_view_mm"]) == len(cal.views_used)
+    pred = cal.report["quality"]["predicted_error"]
+    assert pred["held_out_prediction_mm"] == pytest.approx(held["rms_mm"])
+    assert any("predicted" in w and "mm off" in w and "noisier than the images" in w
+               for w in cal.report["warnings"])
+    err = truth_error(cal.mount, s.true_mount)
+    assert err["translation_m"] <= WITHIN * pred["translation_m"] + FLOOR_M
