@@ -128,6 +128,24 @@ def calibrate_from_views(images: Sequence[np.ndarray], joint_positions: Sequence
                                      options=options)
 
 
+def calibrate_from_poses(images: Sequence[np.ndarray], T_base_flange: Sequence[np.ndarray],
+                         board: Board, *, intrinsics: Intrinsics | None = None,
+                         options: CalibrationOptions = CalibrationOptions()) -> Calibration:
+    """Calibrate from one image (uint8 grey/BGR) and one flange pose (4x4 ``T_base_flange``,
+    base frame, metres) per view: for poses recorded by another tool. See
+    :func:`calibrate_from_views`."""
+    if len(images) != len(T_base_flange):
+        raise ConfigError(f"{len(images)} images but {len(T_base_flange)} poses")
+    if not images:
+        raise CalibrationInputError("no views to calibrate from; record some (15 is good)")
+    sizes = {np.shape(img)[1::-1] for img in images}
+    if len(sizes) != 1:
+        raise ConfigError(f"all views must have one image size, got {sorted(sizes)}")
+    detections = [detect_board(img, board) for img in images]
+    return calibrate_from_detections(detections, T_base_flange, board, sizes.pop(),
+                                     intrinsics=intrinsics, options=options)
+
+
 def calibrate_from_detections(detections: Sequence[Detection | None],
                               T_base_flange: Sequence[np.ndarray], board: Board,
                               image_size: tuple[int, int], *,

@@ -186,10 +186,13 @@ def pose_noise_warnings(held_out_rms_mm: float, fit_rms_mm: float,
                         predicted_translation_m: float, held_out_px: float,
                         fit_px: float) -> list[str]:
     """Say it in millimetres when the arm's poses, not the images, limit the result: the
-    left-out views are predicted much worse than the fit's pixels (HELD_OUT_WARN_FACTOR), or
-    more millimetres off than the hand-eye's predicted error accounts for."""
-    floor = max(POSE_NOISE_WARN_MM, POSE_NOISE_FACTOR * predicted_translation_m * 1000)
-    if not (held_out_rms_mm > floor or held_out_px > HELD_OUT_WARN_FACTOR * fit_px):
+    left-out views are predicted more than POSE_NOISE_WARN_MM off, and either much worse than
+    the fit's pixels (HELD_OUT_WARN_FACTOR) or than the hand-eye's predicted error accounts
+    for (POSE_NOISE_FACTOR)."""
+    if not held_out_rms_mm > POSE_NOISE_WARN_MM:
+        return []
+    if not (held_out_px > HELD_OUT_WARN_FACTOR * fit_px
+            or held_out_rms_mm > POSE_NOISE_FACTOR * predicted_translation_m * 1000):
         return []
     return [f"views left out of the fit are predicted {held_out_rms_mm:.2f} mm off (RMS, "
             f"{held_out_px:.2f} px; the fit's corners {fit_px:.2f} px, its views "
