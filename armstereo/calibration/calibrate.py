@@ -50,6 +50,7 @@ from armstereo.calibration.report import (
     view_warnings,
 )
 from armstereo.calibration.screening import add_screening, check_fit, screen_session
+from armstereo.calibration.selection import REFINED, choose_hand_eye
 from armstereo.camera_model import Intrinsics
 from armstereo.errors import ConfigError
 from armstereo.kinematics import ArmModel
@@ -76,6 +77,8 @@ class CalibrationOptions:
     ``working_distance_m``: for the error's effect on a scan (default: the median board
     distance of the views). ``screen_views``: leave out views whose image disagrees with
     their pose or whose corners are misread (screening.py); False keeps every usable view.
+    ``select_hand_eye``: with ``leave_one_out``, take the hand-eye (refinement or a closed
+    form) that predicts left-out views from their arm poses best (selection.py).
     """
 
     distortion_model: str = "k1k2"
@@ -84,6 +87,7 @@ class CalibrationOptions:
     leave_one_out: bool = True
     working_distance_m: float | None = None
     screen_views: bool = True
+    select_hand_eye: bool = True
     mount_name: str = "calibrated_camera"
 
 
@@ -199,10 +203,14 @@ def calibrate_from_detections(detections: Sequence[Detection | None],
     if options.pose_error is not None:
         warnings += arm_error_warnings(refined.pose_sigma_t, float(np.degrees(
             refined.pose_sigma_r)), None, refined.rms_px)
-    warnings += plausibility_warnings(refined.T_flange_camera)
-    fit_mm = np.array([prediction_mm(d, F, refined.T_flange_camera, refined.T_base_board,
-                                     refined.intrinsics) for d, F in zip(dets, flanges,
-                                                                         strict=True)])
+    chosen = None
+    if loo is not None and options.select_hand_eye:
+        chosen, loo = choose_hand_eye(dets, flanges, refined, loo)
+    X_final = refined.T_flange_camera if chosen is None else chosen.T_flange_camera
+    B_final = refined.T_base_board if chosen is None else chosen.T_base_board
+    warnings += plausibility_warnings(X_final)
+    fit_mm = np.array([prediction_mm(d, F, X_final, B_final, refined.intrinsics)
+                       for d, F in zip(dets, flanges, strict=True)])
     if loo is not None:
         warnings += pose_noise_warnings(_rms_of(loo.held_out_mm), _rms_of(fit_mm),
                                         loo.translation_m, loo.held_out_rms_all_px,
@@ -214,14 +222,19 @@ def calibrate_from_detections(detections: Sequence[Detection | None],
     work_d = options.working_distance_m or float(np.median(distances))
     report = _report(board, len(detections), views, detections, intr_fit, intrinsics,
                      refined, closed, diversity, loo, flanges, T_cb_final, work_d, warnings,
-                     options)
+                     options, X_final)
     add_screening(report, screened)
+    if chosen is not None:
+        report["quality"]["selection"] = chosen.report
     if loo is not None:
         report["quality"]["held_out_prediction"] = held_out_prediction(loo, fit_mm)
         report["quality"]["predicted_error"]["held_out_prediction_mm"] = _rms_of(loo.held_out_mm)
     comments = _mount_comments(board, views, refined, loo)
-    text = mount_toml(options.mount_name, refined.T_flange_camera, refined.intrinsics, comments)
-    mount = CameraMount(options.mount_name, refined.T_flange_camera, refined.intrinsics, text)
+    if chosen is not None and chosen.name != REFINED:
+        comments.append(f"Hand-eye from the {chosen.name} closed form: it predicts left-out "
+                        "views from their arm poses better than the joint refinement.")
+    text = mount_toml(options.mount_name, X_final, refined.intrinsics, comments)
+    mount = CameraMount(options.mount_name, X_final, refined.intrinsics, text)
     for w in warnings:
         log.debug("calibration warning: %s", w)
     return Calibration(mount, report, refined, closed, views, loo)
@@ -231,8 +244,8 @@ def _report(board: Board, n_recorded: int, views: list[int],
             detections: Sequence[Detection | None], intr_fit, given: Intrinsics | None,
             refined: RefineResult, closed: dict[str, HandEyeEstimate], diversity, loo,
             flanges, T_cb, work_d: float, warnings: list[str],
-            options: CalibrationOptions) -> dict:
-    X = refined.T_flange_camera
+            options: CalibrationOptions, X_final: np.ndarray | None = None) -> dict:
+    X = refined.T_flange_camera if X_final is None else X_final
     intr = refined.intrinsics
     spread_t, spread_r = board_pose_spread(flanges, X, T_cb)
     delta = refined.delta
@@ -256,10 +269,11 @@ def _report(board: Board, n_recorded: int, views: list[int],
             "refined_with_hand_eye": options.refine_intrinsics and given is None,
         },
         "motion": diversity.as_dict(),
-        "closed_form": {name: _closed_entry(est, X) for name, est in closed.items()},
+        "closed_form": {name: _closed_entry(est, refined.T_flange_camera)
+                        for name, est in closed.items()},
         "refined": {
-            "T_flange_camera": X.tolist(),
-            "T_camera_flange": invert(X).tolist(),
+            "T_flange_camera": refined.T_flange_camera.tolist(),
+            "T_camera_flange": invert(refined.T_flange_camera).tolist(),
             "T_base_board": refined.T_base_board.tolist(),
             "rms_px": refined.rms_px,
             "per_view_rms_px": refined.per_view_rms_px.tolist(),
