@@ -120,16 +120,9 @@ def calibrate_from_views(images: Sequence[np.ndarray], joint_positions: Sequence
     """
     if len(images) != len(joint_positions):
         raise ConfigError(f"{len(images)} images but {len(joint_positions)} joint vectors")
-    if not images:
-        raise CalibrationInputError("no views to calibrate from; record some (15 is good)")
-    sizes = {np.shape(img)[1::-1] for img in images}
-    if len(sizes) != 1:
-        raise ConfigError(f"all views must have one image size, got {sorted(sizes)}")
-    size = sizes.pop()
-    detections = [detect_board(img, board) for img in images]
     flanges = [model.flange_pose(q) for q in joint_positions]
-    return calibrate_from_detections(detections, flanges, board, size, intrinsics=intrinsics,
-                                     options=options)
+    return calibrate_from_poses(images, flanges, board, intrinsics=intrinsics,
+                                options=options)
 
 
 def calibrate_from_poses(images: Sequence[np.ndarray], T_base_flange: Sequence[np.ndarray],

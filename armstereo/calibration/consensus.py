@@ -38,7 +38,7 @@ import numpy as np
 
 from armstereo.calibration.board import CHESSBOARD, Board, Detection
 from armstereo.calibration.handeye import motion_pairs
-from armstereo.calibration.handeye_pairs import solve_pairs
+from armstereo.calibration.handeye_pairs import PairData, solve_pairs
 from armstereo.calibration.intrinsics import board_pose
 from armstereo.calibration.poses import mean_pose
 from armstereo.camera_model import Intrinsics
@@ -116,7 +116,7 @@ def screen_views(detections: Sequence[Detection], T_base_flange: Sequence[np.nda
     F = [np.asarray(T, float) for T in T_base_flange]
     T_cb = [board_pose(d, intrinsics) for d in dets]
     pts = _probe_points(board)
-    pairs = motion_pairs(F, T_cb)
+    pairs = _Pairs(motion_pairs(F, T_cb))
     triples = _triples(len(dets), seed)
     best, best_score = None, math.inf
     for tri in triples:
@@ -157,14 +157,21 @@ def _triples(n: int, seed: int) -> list[tuple[int, int, int]]:
     return sorted(out)
 
 
-def _solve(pairs, views: set[int]) -> np.ndarray | None:
+class _Pairs:
+    """The usable motion pairs, their solver data computed once, and their views."""
+
+    def __init__(self, pairs):
+        use = [p for p in pairs if p.usable]
+        self.ends = np.array([(p.i, p.j) for p in use]).reshape(-1, 2)
+        self.data = PairData.of(np.array([p.A for p in use]).reshape(-1, 4, 4),
+                                np.array([p.B for p in use]).reshape(-1, 4, 4))
+
+
+def _solve(pairs: _Pairs, views: set[int]) -> np.ndarray | None:
     """Park's X from the usable pairs among ``views``, or None when they do not determine it."""
-    use = [p for p in pairs if p.i in views and p.j in views and p.usable]
-    if len(use) < 2:
-        return None
+    inside = np.isin(pairs.ends, list(views)).all(axis=1).astype(float)
     try:
-        X = solve_pairs("park", np.array([p.A for p in use]), np.array([p.B for p in use]),
-                        np.ones(len(use)))
+        X = solve_pairs("park", None, None, inside, data=pairs.data)
     except (np.linalg.LinAlgError, ValueError):
         return None
     return X if np.all(np.isfinite(X)) else None
@@ -195,8 +202,16 @@ def prediction_error_mm(T_camera_board: np.ndarray, F: np.ndarray, X: np.ndarray
 
 
 def _errors(T_cb, F, X, B, pts) -> np.ndarray:
-    return np.array([prediction_error_mm(c, f, X, B, pts) for c, f in zip(T_cb, F,
-                                                                          strict=True)])
+    """prediction_error_mm of every view at once: ``T_cb`` and ``F`` stacked (n, 4, 4)."""
+    C, Fs = np.asarray(T_cb), np.asarray(F)
+    Rf_t = np.transpose(Fs[:, :3, :3], (0, 2, 1))
+    inv_F = np.zeros_like(Fs)
+    inv_F[:, :3, :3], inv_F[:, :3, 3] = Rf_t, -np.einsum("kij,kj->ki", Rf_t, Fs[:, :3, 3])
+    inv_F[:, 3, 3] = 1.0
+    P = invert(X) @ inv_F @ B  # (n, 4, 4): the board in each camera as the arm puts it
+    seen = np.einsum("kij,pj->kpi", C[:, :3, :3], pts) + C[:, None, :3, 3]
+    put = np.einsum("kij,pj->kpi", P[:, :3, :3], pts) + P[:, None, :3, 3]
+    return 1000.0 * np.sqrt(np.mean(np.sum((seen - put) ** 2, axis=2), axis=1))
 
 
 def _local_refit(T_cb, F, pairs, X, B, errors, threshold, pts):

@@ -33,7 +33,7 @@ import numpy as np
 from armstereo.calibration.board import Detection
 from armstereo.calibration.consensus import prediction_error_mm, prediction_error_px
 from armstereo.calibration.handeye import METHODS, motion_pairs
-from armstereo.calibration.handeye_pairs import solve_pairs
+from armstereo.calibration.handeye_pairs import PairData, solve_pairs
 from armstereo.calibration.intrinsics import board_pose
 from armstereo.calibration.poses import mean_pose, rotvec
 from armstereo.camera_model import Intrinsics
@@ -68,14 +68,18 @@ def closed_form_candidates(detections: Sequence[Detection],
     T_cb = [board_pose(d, intrinsics) for d in detections]
     pairs = [p for p in motion_pairs(F, T_cb) if p.usable]
     n = len(F)
+    if len(pairs) < 2:
+        return []
+    data = PairData.of(np.array([p.A for p in pairs]), np.array([p.B for p in pairs]))
+    ends = np.array([(p.i, p.j) for p in pairs])
     out = []
     for name in METHODS:
-        full = _solve(name, pairs, set(range(n)))
+        full = _solve(name, data, np.ones(len(pairs)))
         if full is None:
             continue
         held, held_mm, xs = [], [], []
         for i in range(n):
-            X = _solve(name, pairs, set(range(n)) - {i})
+            X = _solve(name, data, np.all(ends != i, axis=1).astype(float))
             if X is None:
                 held.append(math.inf)
                 held_mm.append(math.inf)
@@ -113,13 +117,9 @@ def selection_report(candidates: Sequence[Candidate], chosen: Candidate,
     }
 
 
-def _solve(method: str, pairs, views: set[int]) -> np.ndarray | None:
-    use = [p for p in pairs if p.i in views and p.j in views]
-    if len(use) < 2:
-        return None
+def _solve(method: str, data: PairData, weights: np.ndarray) -> np.ndarray | None:
     try:
-        X = solve_pairs(method, np.array([p.A for p in use]), np.array([p.B for p in use]),
-                        np.ones(len(use)))
+        X = solve_pairs(method, None, None, weights, data=data)
     except (np.linalg.LinAlgError, ValueError):
         return None
     return X if np.all(np.isfinite(X)) else None
