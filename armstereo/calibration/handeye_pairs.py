@@ -191,7 +191,7 @@ def _daniilidis(d: PairData, sw) -> np.ndarray:
     T[:, :3, 0], T[:, :3, 1:4] = u - v, _skews(u + v)
     T[:, 3:, 0], T[:, 3:, 1:4] = u_ - v_, _skews(u_ + v_)
     T[:, 3:, 4], T[:, 3:, 5:8] = u - v, _skews(u + v)
-    _, _, Vt = np.linalg.svd((sw[:, None, None] * T).reshape(-1, 8))
+    _, _, Vt = np.linalg.svd((sw[:, None, None] * T).reshape(-1, 8), full_matrices=False)
     v1, v2 = Vt[6], Vt[7]
     u1, w1, u2, w2 = v1[:4], v1[4:], v2[:4], v2[4:]
     a, b, c = u1 @ w1, u1 @ w2 + u2 @ w1, u2 @ w2
