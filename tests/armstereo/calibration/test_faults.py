@@ -54,6 +54,10 @@ def test_a_clean_session_leaves_nothing_out(session):
     assert cal.report["views"]["left_out"] == []
     assert cal.views_used == list(range(N_VIEWS))
     _within_predicted(cal, session.true_mount)
+    # a UR-like arm does not limit the fit: the refinement gives the mount, not a closed form
+    selection = cal.report["quality"]["selection"]
+    assert selection["chosen"] == "refined" and not selection["pose_limited"]
+    np.testing.assert_array_equal(cal.mount.T_flange_camera, cal.refined.T_flange_camera)
 
 
 def test_bad_poses_and_a_stale_frame_are_named_with_their_evidence(session):
