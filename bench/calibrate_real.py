@@ -110,7 +110,9 @@ def row(name: str, kind: str, dets, flanges, size, scored) -> tuple[str, float]:
     b = held_out(park, dets, flanges, size, scored)
     ratio = float(np.median(a[:, 0]) / np.median(b[:, 0]))
     q = full.report["quality"]
+    chosen = q.get("selection", {}).get("chosen", "refined")
     line = (f"| {name} | {kind} | {len(full.views_used)} / {len(dets)} | {named or 'none'} | "
+            f"{chosen} | "
             f"{np.median(a[:, 0]):.2f} px, {np.median(a[:, 1]):.2f} mm | "
             f"{np.median(b[:, 0]):.2f} px, {np.median(b[:, 1]):.2f} mm | **{ratio:.2f}** | "
             f"{q['predicted_error']['translation_m'] * 1000:.2f} mm / "
@@ -129,9 +131,9 @@ def main() -> None:
              "Held-out prediction error: each view predicted from its arm pose by a "
              "calibration fitted without it (median over the scored views). Ratio = "
              "armstereo / OpenCV Park (px); at most 1 is the issue-25 target.", "",
-             "| session | data | views used | left out (named) | armstereo held-out | "
-             "OpenCV Park held-out | ratio | predicted error | arm pose error (est.) | "
-             "time |", "|---|---|---|---|---|---|---|---|---|---|"]
+             "| session | data | views used | left out (named) | hand-eye from | "
+             "armstereo held-out | OpenCV Park held-out | ratio | predicted error | "
+             "arm pose error (est.) | time |", "|---|---|---|---|---|---|---|---|---|---|---|"]
     for name, kind in SESSIONS:
         if name not in args.sessions:
             continue
