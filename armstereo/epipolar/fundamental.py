@@ -7,8 +7,9 @@ arrays, with ``x2^T F x1 = 0``, ``F`` rank 2 and of unit Frobenius norm. The met
 ``8point``    Hartley-normalised 8-point least squares on all points (no outlier rejection).
 ``ransac``    OpenCV's RANSAC (7-point samples, inlier count), then the normalised 8-point
               refit on the inliers (H&Z algorithm 11.4; OpenCV alone skips it).
-``lmeds``     OpenCV's least median of squares (needs no threshold to find the matrix, breaks
-              down at 50 % outliers), refitted on the inliers like ``ransac``.
+``lmeds``     least median of squares (needs no threshold to find the matrix, breaks down at
+              50 % outliers): OpenCV's and our own sampling loop as starts, each polished by
+              the Gold Standard; the one with most inliers wins (lmeds.py).
 ``mlesac``    Torr & Zisserman's MLESAC: 7-point samples scored by the likelihood of a Gaussian
               inlier / uniform outlier mixture whose mixing weight is found by EM.
 ``mapsac``    Torr's MAPSAC in its usual form, a truncated-quadratic (MSAC) score.
@@ -78,9 +79,10 @@ def estimate_fundamental(x1: np.ndarray, x2: np.ndarray, method: str, *,
 
     Returns ``(F, inlier_mask)``: F (3x3, rank 2, unit norm, ``x2^T F x1 = 0``) and an ``(N,)``
     bool mask (Sampson distance below ``threshold`` px). ``seed`` fixes the sampling of the
-    methods implemented here (``mlesac``, ``mapsac``, the ``gold`` start); OpenCV's own sampling
-    is deterministic. Raises EpipolarError for malformed input or an unknown method and
-    DegenerateError when the points do not determine F (see the module doc).
+    methods implemented here (``mlesac``, ``mapsac``, ``lmeds``' own loop, the ``gold``
+    start); OpenCV's own sampling is deterministic. Raises EpipolarError for malformed input
+    or an unknown method and DegenerateError when the points do not determine F (see the
+    module doc).
     """
     x1, x2 = as_pairs(x1, x2)
     _check_options(method, threshold, confidence, max_iters)
@@ -91,6 +93,11 @@ def estimate_fundamental(x1: np.ndarray, x2: np.ndarray, method: str, *,
         F = eight_point(x1, x2)
     elif method == "magsac":  # MAGSAC++ ends with its own weighted least-squares fit
         F = _opencv(x1, x2, method, threshold, confidence, max_iters)
+    elif method == "lmeds":
+        from armstereo.epipolar.lmeds import lmeds_fundamental
+
+        F = lmeds_fundamental(x1, x2, threshold=threshold, confidence=confidence,
+                              max_iters=max_iters, seed=seed)
     elif method in _OPENCV_FLAGS:
         F = refit_on_inliers(_opencv(x1, x2, method, threshold, confidence, max_iters),
                              x1, x2, threshold)
