@@ -26,7 +26,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from armstereo.epipolar.fundamental import _opencv, estimate_fundamental, refit_on_inliers
+from armstereo.epipolar.fundamental import estimate_fundamental
+from armstereo.epipolar.linear import opencv_fundamental, refit_on_inliers
 from armstereo.epipolar.metrics import sampson_distance
 from armstereo.epipolar.study_scenes import IMAGE_SIZE, MOTIONS, SCENES, two_views
 from bench.harness import command_line, machine_note, timed, write_report
@@ -51,8 +52,8 @@ def masks(x1, x2, trial: int) -> dict[str, tuple[np.ndarray, float]]:
     out = {}
     (_, m), dt = timed(estimate_fundamental, x1, x2, "lmeds", seed=trial, allow_degenerate=True)
     out["lmeds"] = (m, dt)
-    F, dt = timed(lambda: refit_on_inliers(_opencv(x1, x2, "lmeds", THRESHOLD, 0.999, 5000),
-                                           x1, x2, THRESHOLD))
+    start = (x1, x2, "lmeds", THRESHOLD, 0.999, 5000)
+    F, dt = timed(lambda: refit_on_inliers(opencv_fundamental(*start), x1, x2, THRESHOLD))
     out["lmeds before"] = (sampson_distance(F, x1, x2) < THRESHOLD, dt)
     (Fc, mc), dt = timed(cv2.findFundamentalMat, x1, x2, cv2.FM_LMEDS, THRESHOLD, 0.999, 5000)
     out["OpenCV mask"] = (mc.ravel().astype(bool), dt)

@@ -25,6 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from armstereo.epipolar.errors import DegenerateError, EpipolarError
+from armstereo.epipolar.linear import opencv_fundamental, refit_on_inliers
 from armstereo.epipolar.metrics import sampson_distance
 
 CAPTURE_FACTORS = (1.0, 2.0)  # polish on the points within these many thresholds
@@ -36,12 +37,11 @@ def lmeds_fundamental(x1: np.ndarray, x2: np.ndarray, *, threshold: float, confi
                       max_iters: int, seed: int = 0) -> np.ndarray:
     """F (3x3) of ``(N, 2)`` pixel pairs by polished LMedS (module docstring); raises
     DegenerateError when no start yields a matrix."""
-    from armstereo.epipolar.fundamental import _opencv, refit_on_inliers
     from armstereo.epipolar.sampling import consensus
 
     starts = []
     try:
-        starts.append(refit_on_inliers(_opencv(x1, x2, "lmeds", threshold, confidence,
+        starts.append(refit_on_inliers(opencv_fundamental(x1, x2, "lmeds", threshold, confidence,
                                                max_iters), x1, x2, threshold))
     except DegenerateError:
         pass
