@@ -85,6 +85,27 @@ STAGES = [
     ("stereo", "_first_pass", "rest of birchfield()"),
     ("stereo", "_second_pass", "rest of birchfield()"),
     ("stereo", "birchfield", "rest of birchfield()"),
+    # the same stages after the split of stereo.py by stage (issue 23)
+    ("stereo_inputs", "prepare", "input checks"),
+    ("stereo_inputs", "grey", "grey conversion"),
+    ("stereo_inputs", "texture_strength", "texture maps"),
+    ("stereo_inputs", "rewarded", "texture maps"),
+    ("stereo_inputs", "highpass", "highpass prefilter"),
+    ("stereo_inputs", "with_edges", "edge prefilter"),
+    ("subpixel", "gradient_step", "sub-pixel: fast"),
+    ("subpixel", "refine_gradient", "sub-pixel: gradient"),
+    ("subpixel", "refine_parabola", "sub-pixel: parabola"),
+    ("rejection", "_median", "median"),
+    ("rejection", "unsupported", "unsupported flat pixels"),
+    ("rejection", "hidden_by_nearer", "hidden by nearer"),
+    ("rejection", "_flat_and_hidden", "unsupported flat + hidden (one kernel)"),
+    ("rejection", "_rows", "unsupported flat + hidden (one kernel)"),
+    ("rejection", "photo_inconsistent", "photo check"),
+    ("rejection", "add_rejections", "reject (NaN bookkeeping)"),
+    ("rejection", "clip_to_window", "clip to window"),
+    ("rejection", "reject_invalid_partners", "invalid partners"),
+    ("rejection", "masked_map", "rest of birchfield()"),
+    ("rejection", "_first_pass", "rest of birchfield()"),
 ]
 DP = "DP kernels"
 SUBPIXEL = "sub-pixel: fast"
@@ -150,7 +171,8 @@ def worker(repeats: int, options: dict, only: list[str] | None, masked: bool) ->
     cv2.setNumThreads(1)
     timer = StageTimer()
     modules = {"stereo": stereo, "aggregate": aggregate}
-    for part in ("consensus", "speckles"):  # split out of stereo.py: older trees lack them
+    # split out of stereo.py: older trees lack them
+    for part in ("consensus", "speckles", "stereo_inputs", "rejection", "subpixel"):
         if importlib.util.find_spec(f"armstereo.reconstruct.{part}") is not None:
             modules[part] = importlib.import_module(f"armstereo.reconstruct.{part}")
     present = []

@@ -11,8 +11,6 @@ MAX_LINES = 500
 # Being split by other work under issue 23 (the matcher's stages, the rectification plan, the mock
 # scene's parts); remove each name when its split lands.
 BEING_SPLIT = {
-    "armstereo/reconstruct/stereo.py": "split by stage (issue 23, items 1-2)",
-    "armstereo/reconstruct/rectify.py": "rectification planned once per pair (issue 23)",
     "drivers/mock/scene.py": "primitives, ray caster, shading, textures, catalogue (issue 23)",
 }
 FILES = sorted(p for package in ("armstereo", "drivers") for p in (ROOT / package).rglob("*.py"))

@@ -7,8 +7,9 @@ arrays, with ``x2^T F x1 = 0``, ``F`` rank 2 and of unit Frobenius norm. The met
 ``8point``    Hartley-normalised 8-point least squares on all points (no outlier rejection).
 ``ransac``    OpenCV's RANSAC (7-point samples, inlier count), then the normalised 8-point
               refit on the inliers (H&Z algorithm 11.4; OpenCV alone skips it).
-``lmeds``     OpenCV's least median of squares (needs no threshold to find the matrix, breaks
-              down at 50 % outliers), refitted on the inliers like ``ransac``.
+``lmeds``     least median of squares (needs no threshold to find the matrix, breaks down at
+              50 % outliers): OpenCV's and our own sampling loop as starts, each polished by
+              the Gold Standard; the one with most inliers wins (lmeds.py).
 ``mlesac``    Torr & Zisserman's MLESAC: 7-point samples scored by the likelihood of a Gaussian
               inlier / uniform outlier mixture whose mixing weight is found by EM.
 ``mapsac``    Torr's MAPSAC in its usual form, a truncated-quadratic (MSAC) score.
@@ -33,14 +34,19 @@ import cv2
 import numpy as np
 
 from armstereo.epipolar.errors import DegenerateError, EpipolarError
-from armstereo.epipolar.linear import MIN_CORRESPONDENCES, eight_point, refit_on_inliers
+from armstereo.epipolar.linear import (
+    MIN_CORRESPONDENCES,
+    OPENCV_FLAGS,
+    eight_point,
+    opencv_fundamental,
+    refit_on_inliers,
+)
 from armstereo.epipolar.metrics import sampson_distance
 from armstereo.epipolar.projective import (
     apply,
     as_pairs,
     check_camera_matrix,
     check_pose,
-    enforce_rank2,
     normalized,
     skew,
 )
@@ -66,7 +72,6 @@ MIN_OFF_PLANE_SHARE = 0.05
 # leaves well over MIN_OFF_PLANE_SHARE of the points off it anyway.
 HOMOGRAPHY_MAX_ITERS = 300
 
-_OPENCV_FLAGS = {"ransac": cv2.FM_RANSAC, "lmeds": cv2.FM_LMEDS, "magsac": cv2.USAC_MAGSAC}
 
 
 def estimate_fundamental(x1: np.ndarray, x2: np.ndarray, method: str, *,
@@ -78,9 +83,10 @@ def estimate_fundamental(x1: np.ndarray, x2: np.ndarray, method: str, *,
 
     Returns ``(F, inlier_mask)``: F (3x3, rank 2, unit norm, ``x2^T F x1 = 0``) and an ``(N,)``
     bool mask (Sampson distance below ``threshold`` px). ``seed`` fixes the sampling of the
-    methods implemented here (``mlesac``, ``mapsac``, the ``gold`` start); OpenCV's own sampling
-    is deterministic. Raises EpipolarError for malformed input or an unknown method and
-    DegenerateError when the points do not determine F (see the module doc).
+    methods implemented here (``mlesac``, ``mapsac``, ``lmeds``' own loop, the ``gold``
+    start); OpenCV's own sampling is deterministic. Raises EpipolarError for malformed input
+    or an unknown method and DegenerateError when the points do not determine F (see the
+    module doc).
     """
     x1, x2 = as_pairs(x1, x2)
     _check_options(method, threshold, confidence, max_iters)
@@ -90,9 +96,14 @@ def estimate_fundamental(x1: np.ndarray, x2: np.ndarray, method: str, *,
     if method == "8point":
         F = eight_point(x1, x2)
     elif method == "magsac":  # MAGSAC++ ends with its own weighted least-squares fit
-        F = _opencv(x1, x2, method, threshold, confidence, max_iters)
-    elif method in _OPENCV_FLAGS:
-        F = refit_on_inliers(_opencv(x1, x2, method, threshold, confidence, max_iters),
+        F = opencv_fundamental(x1, x2, method, threshold, confidence, max_iters)
+    elif method == "lmeds":
+        from armstereo.epipolar.lmeds import lmeds_fundamental
+
+        F = lmeds_fundamental(x1, x2, threshold=threshold, confidence=confidence,
+                              max_iters=max_iters, seed=seed)
+    elif method in OPENCV_FLAGS:
+        F = refit_on_inliers(opencv_fundamental(x1, x2, method, threshold, confidence, max_iters),
                              x1, x2, threshold)
     elif method in ("mlesac", "mapsac"):
         F = consensus(x1, x2, method, threshold=threshold, confidence=confidence,
@@ -112,7 +123,7 @@ def _gold(x1: np.ndarray, x2: np.ndarray, threshold: float, confidence: float,
     """Gold Standard refinement of the MAGSAC++ estimate on its inliers."""
     from armstereo.epipolar.gold import gold_standard
 
-    F0 = _opencv(x1, x2, "magsac", threshold, confidence, max_iters)
+    F0 = opencv_fundamental(x1, x2, "magsac", threshold, confidence, max_iters)
     start = sampson_distance(F0, x1, x2) < threshold
     if start.sum() < MIN_CORRESPONDENCES:
         raise DegenerateError(f"only {int(start.sum())} correspondences fit the robust start "
@@ -131,18 +142,6 @@ def _check_options(method: str, threshold: float, confidence: float, max_iters: 
         raise EpipolarError(f"confidence must lie in (0, 1), got {confidence}")
     if int(max_iters) < 1:
         raise EpipolarError(f"max_iters must be >= 1, got {max_iters}")
-
-
-def _opencv(x1: np.ndarray, x2: np.ndarray, method: str, threshold: float, confidence: float,
-            max_iters: int) -> np.ndarray:
-    """One of OpenCV's robust estimators; raises DegenerateError when it finds nothing."""
-    F, _ = cv2.findFundamentalMat(x1.astype(np.float64), x2.astype(np.float64),
-                                  _OPENCV_FLAGS[method], float(threshold), float(confidence),
-                                  int(max_iters))
-    if F is None or F.shape != (3, 3) or not np.all(np.isfinite(F)):
-        raise DegenerateError(f"OpenCV's {method} found no fundamental matrix for these "
-                              f"{len(x1)} correspondences")
-    return enforce_rank2(F)
 
 
 def check_not_degenerate(x1: np.ndarray, x2: np.ndarray, threshold: float) -> None:

@@ -8,6 +8,7 @@ Pixels in, ``x2^T F x1 = 0``, F rank 2 and of unit Frobenius norm.
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
 from armstereo.epipolar.errors import DegenerateError
@@ -21,6 +22,8 @@ from armstereo.epipolar.projective import (
 )
 
 MIN_CORRESPONDENCES = 8
+# OpenCV's robust estimators by our method names
+OPENCV_FLAGS = {"ransac": cv2.FM_RANSAC, "lmeds": cv2.FM_LMEDS, "magsac": cv2.USAC_MAGSAC}
 # The 8-point system must have a one-dimensional null space: its second smallest singular
 # value (normalised coordinates) must exceed this share of the largest one.
 MIN_SINGULAR_RATIO = 1e-9
@@ -70,3 +73,15 @@ def refit_on_inliers(F: np.ndarray, x1: np.ndarray, x2: np.ndarray, threshold: f
         raise DegenerateError(f"only {int(mask.sum())} correspondences support the estimate "
                               f"within {threshold:g} px; need {MIN_CORRESPONDENCES}")
     return F
+
+
+def opencv_fundamental(x1: np.ndarray, x2: np.ndarray, method: str, threshold: float,
+                       confidence: float, max_iters: int) -> np.ndarray:
+    """One of OpenCV's robust estimators; raises DegenerateError when it finds nothing."""
+    F, _ = cv2.findFundamentalMat(x1.astype(np.float64), x2.astype(np.float64),
+                                  OPENCV_FLAGS[method], float(threshold), float(confidence),
+                                  int(max_iters))
+    if F is None or F.shape != (3, 3) or not np.all(np.isfinite(F)):
+        raise DegenerateError(f"OpenCV's {method} found no fundamental matrix for these "
+                              f"{len(x1)} correspondences")
+    return enforce_rank2(F)
