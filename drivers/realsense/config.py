@@ -51,8 +51,9 @@ class RealSenseCameraConfig:
         "--white-balance", "OpenCV or RealSense camera: white balance in kelvin, locked",
         type=float))
     intrinsics: str = field(default="auto", metadata=option(
-        "--intrinsics", "RealSense camera: device (factory calibration), mount (the mount "
-        "file's, checked against the device's) or auto (device unless --mount is given)",
+        "--realsense-intrinsics", "RealSense camera: device (factory calibration), mount "
+        "(the mount file's, checked against the device's) or auto (device unless --mount is "
+        "given)",
         choices=INTRINSICS_SOURCES))
     timeout: float = 5.0
 
@@ -76,6 +77,6 @@ class RealSenseCameraConfig:
         if self.white_balance is not None:
             positive(self.white_balance, "--white-balance", "K")
         if self.intrinsics not in INTRINSICS_SOURCES:
-            raise ConfigError(f"--intrinsics must be one of {', '.join(INTRINSICS_SOURCES)}, "
-                              f"got {self.intrinsics!r}")
+            raise ConfigError(f"--realsense-intrinsics must be one of "
+                              f"{', '.join(INTRINSICS_SOURCES)}, got {self.intrinsics!r}")
         positive(self.timeout, "camera timeout", "s")

@@ -177,7 +177,7 @@ def to_intrinsics(rs, intr) -> tuple[Intrinsics, str]:
             f"inverse_brown_conrady fitted to OpenCV's model (worst {worst_px:.3f} px)"
     raise ConfigError(f"the camera's colour intrinsics use the {model.name} distortion model, "
                       "which armstereo does not convert; give a calibrated mount (--mount "
-                      "FILE, --intrinsics mount)")
+                      "FILE, --realsense-intrinsics mount)")
 
 
 def _brown(x: np.ndarray, y: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
