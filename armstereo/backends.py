@@ -7,8 +7,12 @@ importing armstereo never imports a vendor SDK or a mock. Each backend lives in
 metadata (made with :func:`armstereo.flags.option`) are the backend's command-line flags, so a
 backend's flags are written once, beside its driver.
 
-Names used on the command line: arms ``mock`` and ``ur``; cameras ``mock`` and
-``opencv:<index, path or pipeline>``.
+Names used on the command line: arms ``mock`` and ``ur``; cameras ``mock``,
+``opencv:<index, path or pipeline>``, ``genicam:<serial or index>`` and ``realsense:<serial>``.
+The last two are optional extras (``pip install 'armstereo[genicam]'``, ``[realsense]``):
+their config modules import nothing of the SDK, so their flags always show; choosing one whose
+extra is missing is a one-line ConfigError (:func:`require_backend_extra`). Each camera backend
+may name a ``lister``, the function ``armstereo cameras`` calls to say what it can see.
 """
 
 from __future__ import annotations
@@ -40,6 +44,12 @@ class Backend:
     config_module: str
     config: str
     description: str
+    # The optional extra (a key of EXTRAS) that installs what the driver imports; "" none.
+    extra: str = ""
+    # "module:function" listing the devices this backend can see (``armstereo cameras``).
+    lister: str = ""
+    # The device part of the spec: "" none (``mock``), "required" (``opencv:<device>``).
+    device: str = ""
 
 
 ARMS: dict[str, Backend] = {
@@ -53,8 +63,20 @@ CAMERAS: dict[str, Backend] = {
                     "MockCameraConfig", "ray-cast camera on the mock scene (the default)"),
     "opencv": Backend("camera", "opencv", "drivers.opencv.camera", "OpenCVCamera",
                       "drivers.opencv.config", "OpenCVCameraConfig",
-                      "USB or GStreamer camera through OpenCV (opencv:<index, path or pipeline>)"),
+                      "USB or GStreamer camera through OpenCV (opencv:<index, path or pipeline>)",
+                      lister="drivers.opencv.discovery:list_cameras", device="required"),
+    "genicam": Backend("camera", "genicam", "drivers.genicam.camera", "GenICamCamera",
+                       "drivers.genicam.config", "GenICamCameraConfig",
+                       "GigE Vision / USB3 Vision camera through a GenTL producer "
+                       "(genicam:<serial or index>)", extra="genicam",
+                       lister="drivers.genicam.discovery:list_cameras",
+                       device="required"),
+    "realsense": Backend("camera", "realsense", "drivers.realsense.camera", "RealSenseCamera",
+                         "drivers.realsense.config", "RealSenseCameraConfig",
+                         "Intel RealSense colour camera (realsense:<serial>)", extra="realsense",
+                         lister="drivers.realsense.discovery:list_cameras", device="required"),
 }
+CAMERA_SPECS = "mock, opencv:<index or path>, genicam:<serial or index>, realsense:<serial>"
 ARM_NAMES = tuple(ARMS)
 
 
@@ -66,11 +88,49 @@ def arm_backend(name: str) -> Backend:
 
 
 def camera_backend(spec: str) -> tuple[Backend, str]:
-    """(backend, device) for a camera spec ``mock`` or ``opencv:<device>``."""
+    """(backend, device) for a camera spec: ``mock``, ``opencv:<device>``,
+    ``genicam:<serial or index>`` or ``realsense:<serial>``."""
     name, _, device = spec.partition(":")
-    if name not in CAMERAS or (name == "opencv") != bool(device.strip()):
-        raise ConfigError(f"unknown camera {spec!r}; use 'mock' or 'opencv:<index or path>'")
+    if name not in CAMERAS or (CAMERAS[name].device == "required") != bool(device.strip()):
+        raise ConfigError(f"unknown camera {spec!r}; use one of: {CAMERA_SPECS}")
     return CAMERAS[name], device.strip()
+
+
+def missing_extra(backend: Backend) -> str | None:
+    """The one-line reason ``backend`` cannot run here (its optional extra is not installed),
+    or None. Looks the modules up without importing them (a camera SDK is large, and its
+    import may need more than the module: see drivers/realsense/sdk.py)."""
+    import importlib.util
+
+    for module in EXTRAS[backend.extra].modules if backend.extra else ():
+        try:
+            found = importlib.util.find_spec(module) is not None
+        except (ImportError, ValueError):
+            found = False
+        if not found:
+            return (f"the {backend.name} {backend.kind} needs the optional extra: pip install "
+                    f"'armstereo[{backend.extra}]' ({module} is not installed)")
+    return None
+
+
+def require_backend_extra(backend: Backend) -> None:
+    """ConfigError (exit 2) when ``backend``'s optional extra is not installed."""
+    problem = missing_extra(backend)
+    if problem:
+        raise ConfigError(problem)
+
+
+def list_cameras(name: str, options: dict[str, Any]) -> list[dict]:
+    """What camera backend ``name`` can see now (its ``lister``; ``options`` such as ``cti``
+    or ``playback``): one JSON-ready dict per device with at least ``spec``, ``serial``,
+    ``model``, ``status``, ``modes``, ``note``. ConfigError when the backend cannot look (its
+    extra or producer missing); the mock lists its one simulated camera."""
+    backend = CAMERAS[name]
+    require_backend_extra(backend)
+    if not backend.lister:
+        return []
+    module, _, function = backend.lister.partition(":")
+    return getattr(importlib.import_module(module), function)(dict(options))
 
 
 def config_class(backend: Backend) -> type:
@@ -97,6 +157,7 @@ def build_camera(spec: str, config: Any, model: ArmModel, arm: Arm) -> Camera:
     the mock camera renders from the arm's actual joints through ``model``."""
     backend, _ = camera_backend(spec)
     _check_config(backend, config)
+    require_backend_extra(backend)
     return getattr(importlib.import_module(backend.module), backend.driver).from_config(
         config, model, arm)
 
@@ -147,6 +208,7 @@ def arm_config(name: str, **values: Any) -> Any:
 def camera_config(spec: str, **values: Any) -> Any:
     """A config for camera ``spec``; an ``opencv:<device>`` spec fills in the device."""
     backend, device = camera_backend(spec)
+    require_backend_extra(backend)
     if device:
         values = {**values, "device": device}
     return _make_config(backend, values)
@@ -188,6 +250,8 @@ class Extra:
 EXTRAS: dict[str, Extra] = {
     "ros2": Extra("ros2", ("rosbags",), "ROS 2 bags (armstereo export --to ros2, "
                   "armstereo import)"),
+    "genicam": Extra("genicam", ("harvesters",), "the genicam camera"),
+    "realsense": Extra("realsense", ("pyrealsense2",), "the realsense camera"),
 }
 
 

@@ -32,7 +32,7 @@ SOURCE_PACKAGES = ("armstereo", "drivers", "robot_models")
 LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("basics", ("armstereo.errors", "armstereo.frame", "armstereo.clock", "armstereo.flags",
                 "armstereo.validate", "armstereo.transforms", "armstereo.camera_model",
-                "armstereo.io", "robot_models")),
+                "armstereo.io", "armstereo.camera_settings", "robot_models")),
     ("models of the arm, the camera and the truth",
      ("armstereo.mount", "armstereo.devices", "armstereo.robot", "armstereo.kinematics",
       "armstereo.evaluation")),

@@ -38,7 +38,8 @@ def add_backend_flags(p: argparse.ArgumentParser, *, arms: tuple[str, ...] = bac
     """
     defaults = defaults or {}
     p.add_argument("--arm", choices=arms, default="mock", help="arm backend (default mock)")
-    p.add_argument("--camera", default="mock", help="mock or opencv:<index-or-path>")
+    p.add_argument("--camera", default="mock", help=backends.CAMERA_SPECS
+                   + " (armstereo cameras lists what is connected)")
     p.add_argument("--robot", default="ur5e",
                    help=f"arm model: {', '.join(MODEL_NAMES)}, a URDF file or a model file "
                    "saved by robot-info --save")

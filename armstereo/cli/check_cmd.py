@@ -8,6 +8,7 @@ import logging
 import sys
 from pathlib import Path
 
+from armstereo import camera_settings
 from armstereo.cli import args as args_
 from armstereo.epipolar.features import DETECTORS
 from armstereo.epipolar.fundamental import ROBUST_METHODS
@@ -24,7 +25,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         description="Match features in each pair, and measure how far the matches lie from "
         "the epipolar lines the recorded poses and intrinsics imply (median Sampson distance). "
         "Verdict per pair: ok, miscalibrated (with the camera offset that explains it) or "
-        "inconclusive (the images cannot tell). Exit 0 whatever the verdicts.")
+        "inconclusive (the images cannot tell). Warns when the camera took the two views of a "
+        "pair at a different exposure, gain or white balance (where it reported them). Exit 0 "
+        "whatever the verdicts.")
     p.add_argument("recording", metavar="REC.mcap", type=args_.input_file,
                    help="recording made by armstereo capture")
     p.add_argument("--pair", default="all", metavar="K|all",
@@ -56,6 +59,16 @@ def _select(rec: Recording, which: str) -> list:
     return chosen
 
 
+def settings_report(pair) -> dict:
+    """How the camera settings of a pair's two views compare (:mod:`armstereo.camera_settings`):
+    both views' settings, each difference, and a warning for each one the matcher pays for."""
+    diffs = camera_settings.compare(pair.left.camera_settings, pair.right.camera_settings)
+    return {"left": pair.left.camera_settings, "right": pair.right.camera_settings,
+            "differences": [d.as_dict() for d in diffs],
+            "warnings": [f"views {pair.left.index} and {pair.right.index}: {d.describe()}"
+                         for d in diffs if d.too_large]}
+
+
 def _text(check: PairCheck) -> list[str]:
     head = f"pair {check.pair}: {check.verdict}"
     if check.median_sampson_px is None:
@@ -82,14 +95,18 @@ def run(args: argparse.Namespace) -> int:
     rec = Recording.open(path)
     pairs = _select(rec, args.pair)
     checks = []
+    settings = []
     for pair in pairs:
         checks.append(check_pair(pair, detector=args.detector, method=args.method,
                                  threshold_px=args.threshold))
+        settings.append(settings_report(pair))
         if not args.json:
-            print("\n".join(_text(checks[-1])))
+            print("\n".join(_text(checks[-1]) + [f"  warning: {w}"
+                                                  for w in settings[-1]["warnings"]]))
     if args.json:
         doc = {"recording": path.name, "threshold_px": args.threshold,
-               "pairs": [c.as_dict() for c in checks]}
+               "pairs": [{**c.as_dict(), "camera_settings": st}
+                         for c, st in zip(checks, settings, strict=True)]}
         json.dump(doc, sys.stdout, indent=2)
         print()
     return 0

@@ -92,6 +92,8 @@ def _build_views(rec: RecordingContents, col: Collector) -> None:
         claimed.add(t_ns)
         view = _make_view(rec, col, index, t_ns, settle_s)
         view.controller_T_base_flange = controller
+        for key, value in col.device_fields.get(index, {}).items():
+            setattr(view, key, value)
         rec.views.append(view)
     for topic, table in ((S.TOPIC_IMAGE, col.images), (S.TOPIC_TF, col.tf),
                          (S.TOPIC_DEPTH, col.depth)):

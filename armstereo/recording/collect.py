@@ -19,7 +19,9 @@ from foxglove_schemas_protobuf.PointCloud_pb2 import PointCloud
 from foxglove_schemas_protobuf.RawImage_pb2 import RawImage
 from mcap.records import Channel, Message, Metadata, Schema, Statistics
 
+from armstereo import camera_settings
 from armstereo.camera_model import Intrinsics
+from armstereo.errors import RecordingError
 from armstereo.recording import schemas as S
 from armstereo.recording.contents import RecordedPointCloud
 from armstereo.transforms import make_T, matrix_from_quaternion_xyzw
@@ -58,6 +60,7 @@ class Collector:
         self.joints: dict[int, tuple[int, list[str], list[float]]] = {}
         self.view_events: dict[int, tuple[int, float, np.ndarray | None]] = {}
         self.pair_events: list[dict] = []
+        self.device_fields: dict[int, dict] = {}  # view -> camera_settings, device time, frame
         self.point_clouds: list[RecordedPointCloud] = []
         self._errors: dict[str, list] = {}  # topic -> [count, first reason]
         self._ignored: Counter[str] = Counter()
@@ -166,7 +169,9 @@ class Collector:
         if kind == "view":
             entry = (_int(obj, "timestamp_ns"), _number(obj, "settle_s"),
                      _controller_pose(obj))
-            self._keep(self.view_events, _int(obj, "view"), entry, topic)
+            view = _int(obj, "view")
+            self._keep(self.view_events, view, entry, topic)
+            self._device_fields(view, obj)
         elif kind == "pair":
             event = {"pair": _int(obj, "pair"), "left_view": _int(obj, "left_view"),
                      "right_view": _int(obj, "right_view"),
@@ -180,6 +185,21 @@ class Collector:
                 self.pair_events.append(event)
         else:
             raise ValueError(f"unknown event kind {kind!r}")
+
+    def _device_fields(self, view: int, obj: dict) -> None:
+        """The view event's optional camera report; a malformed one is dropped (counted), the
+        view is kept."""
+        if view in self.device_fields:
+            return
+        try:
+            fields = {"camera_settings": camera_settings.validate(obj.get("camera_settings")),
+                      "device_timestamp_ns": _optional_int(obj, "device_timestamp_ns"),
+                      "device_frame": _optional_int(obj, "device_frame")}
+        except (ValueError, RecordingError) as err:
+            entry = self._errors.setdefault(S.TOPIC_EVENTS + " camera report", [0, describe(err)])
+            entry[0] += 1
+            return
+        self.device_fields[view] = fields
 
     def points(self, data: bytes, t_ns: int, topic: str) -> None:
         msg = PointCloud.FromString(data)
@@ -293,6 +313,10 @@ def _number(obj: dict, key: str) -> float:
         raise ValueError(f"'{key}' is not a finite number")
     return float(v)
 
+
+
+def _optional_int(obj: dict, key: str) -> int | None:
+    return _int(obj, key) if key in obj else None
 
 
 def _controller_pose(obj: dict) -> np.ndarray | None:

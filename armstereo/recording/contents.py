@@ -36,6 +36,10 @@ class View:
     image_size: tuple[int, int] | None = None  # (width, height) from the image header
     # The controller's own T_base_flange at this view's joints (if the arm reported one).
     controller_T_base_flange: np.ndarray | None = None
+    # What the camera reported about the frame, where it did (armstereo.camera_settings):
+    camera_settings: dict | None = None
+    device_timestamp_ns: int | None = None
+    device_frame: int | None = None
     _image_data: bytes = field(default=b"", repr=False)
     _depth_msg: RawImage | None = field(default=None, repr=False)
 

@@ -89,6 +89,17 @@ CAPTURE_EVENT_SCHEMA = {
                     "maxItems": 16,
                     "description": "the controller's own flange pose at the view's joints "
                                    "(4x4 row-major, base frame, m), beside our FK on /tf"},
+                "camera_settings": {
+                    "type": "object",
+                    "description": "exposure, gain, white balance, gamma the camera reported for "
+                                   "this frame (names and units: armstereo.camera_settings)",
+                    "additionalProperties": {"oneOf": [
+                        {"type": "number"}, {"type": "array", "items": {"type": "number"}}]}},
+                "device_timestamp_ns": {"type": "integer", "minimum": 0,
+                                        "description": "the camera's own time stamp of the "
+                                                       "frame (its clock), ns"},
+                "device_frame": {"type": "integer", "minimum": 0,
+                                 "description": "the camera's frame counter"},
             },
             "required": ["event", "view", "timestamp_ns", "settle_s"],
         },

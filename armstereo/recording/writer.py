@@ -32,7 +32,7 @@ from mcap.writer import LIBRARY_IDENTIFIER, CompressionType
 from mcap.writer import Writer as McapWriter
 from mcap_protobuf.schema import register_schema
 
-from armstereo import __version__
+from armstereo import __version__, camera_settings
 from armstereo.camera_model import Intrinsics
 from armstereo.errors import ConfigError, RecordingError
 from armstereo.frame import Frame
@@ -164,7 +164,8 @@ class RecordingWriter:
         ``q`` are the actual joints (rad) at exposure, ``T_base_flange`` their forward
         kinematics and ``T_flange_camera`` the mount; all share ``frame.timestamp_ns``.
         ``controller_T_base_flange``: the flange pose the arm's controller reported for the same
-        joints (kept in the view event, for the FK cross-check), if the arm reports one.
+        joints (kept in the view event, for the FK cross-check), if the arm reports one. What
+        the camera reported about the frame (settings, device time stamp) joins the view event.
         """
         view = check_index("view", view)
         t_ns = check_time(frame.timestamp_ns)
@@ -191,7 +192,8 @@ class RecordingWriter:
         tf_msg = frames_message(T_base_flange, T_flange_camera, t_ns)
         joints = {"timestamp_ns": t_ns, "view": view, "names": names, "positions": q.tolist()}
         event = {"event": "view", "view": view, "timestamp_ns": t_ns,
-                 "settle_s": check_number("settle_s", settle_s)}
+                 "settle_s": check_number("settle_s", settle_s),
+                 **camera_settings.view_event_fields(frame)}
         if controller_T_base_flange is not None:
             event["controller_T_base_tool0"] = as_rigid(
                 controller_T_base_flange, "controller T_base_flange",

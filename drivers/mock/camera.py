@@ -26,7 +26,7 @@ from armstereo.clock import Clock, SimClock
 from armstereo.devices import Arm, Camera, Frame
 from armstereo.errors import CameraTimeout, ConfigError
 from drivers.mock.faults import FaultPlan
-from drivers.mock.imaging import apply_effects
+from drivers.mock.imaging import apply_effects, view_gains
 from drivers.mock.profile import (
     TAG_IMAGE,
     TAG_INTRINSICS,
@@ -171,12 +171,25 @@ class MockCamera(Camera):
         stamp = self.clock.now_ns()
         image, depth = self.scene.render(self._pose_source(), self.true_intrinsics,
                                          supersample=self.supersample)
-        image = apply_effects(image, self.effects, self._effects_rng)
+        gains = view_gains(self.effects, self._effects_rng) if self.effects.any else None
+        image = apply_effects(image, self.effects, self._effects_rng, gains)
         if self.noise_sigma > 0:
             noisy = image + self._rng.normal(0.0, self.noise_sigma, image.shape)
             image = np.clip(np.rint(noisy), 0, 255).astype(np.uint8)
         self._last_depth = depth
-        return Frame(image=image, timestamp_ns=stamp, depth=depth)
+        return Frame(image=image, timestamp_ns=stamp, depth=depth,
+                     settings=reported_settings(self.effects, gains), device_frame=self.grabs)
+
+
+def reported_settings(effects: ImageEffects, gains: np.ndarray | None) -> dict | None:
+    """What the simulated camera reports of a frame's exposure and white balance (None when
+    its profile varies neither): ``gains`` (B, G, R) as a camera states them, an exposure
+    relative to nominal (the green channel's gain) and ``balance_ratio`` [red, green, blue]
+    normalised to green = 1, as GenICam cameras keep it."""
+    if gains is None or (effects.exposure_rel <= 0 and effects.white_balance_rel <= 0):
+        return None
+    b, g, r = (float(x) for x in gains)
+    return {"exposure": g, "balance_ratio": [r / g, 1.0, b / g]}
 
 
 def true_mount(mount, profile: MockProfile, seed: int, offset=None):

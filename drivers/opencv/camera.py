@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
@@ -162,11 +163,11 @@ class OpenCVCamera(Camera):
         got = self._read(self.flush_frames, timeout)
         if got is None:
             raise CameraTimeout(f"camera {self.device!r} delivered no frame within {timeout:g} s")
-        image, t_ns = got
+        image, t_ns, settings = got
         problem = self._size_problem(image)
         if problem:
             raise HardwareError(f"camera {self.device!r} {problem} (changed since connect)")
-        return Frame(image, t_ns)
+        return Frame(image, t_ns, settings=settings or None)
 
     # ------------------------------------------------------------------ worker-thread jobs
     def _open(self):
@@ -184,8 +185,9 @@ class OpenCVCamera(Camera):
         cap.set(cv2.CAP_PROP_BUFFERSIZE, 1)  # fewer stale frames where the backend allows it
         return cap
 
-    def _read(self, flush: int, timeout: float) -> tuple[np.ndarray, int] | None:
-        """(image, timestamp_ns) grabbed within ``timeout`` s after ``flush`` discards, or None."""
+    def _read(self, flush: int, timeout: float) -> tuple[np.ndarray, int, dict] | None:
+        """(image, timestamp_ns, settings) grabbed within ``timeout`` s after ``flush``
+        discards, or None."""
         deadline = time.monotonic() + timeout
         try:
             return self._worker.call(self._read_job, flush, deadline,
@@ -193,7 +195,7 @@ class OpenCVCamera(Camera):
         except DeadlineMissed:
             return None
 
-    def _read_job(self, flush: int, deadline: float) -> tuple[np.ndarray, int] | None:
+    def _read_job(self, flush: int, deadline: float) -> tuple[np.ndarray, int, dict] | None:
         cap = self._cap
         for _ in range(flush):
             cap.grab()
@@ -204,9 +206,24 @@ class OpenCVCamera(Camera):
                 t_ns = self.clock.now_ns()
                 ok, image = cap.retrieve()
                 if ok and image is not None:
-                    return image, t_ns
+                    return image, t_ns, self._frame_settings(cap)
             time.sleep(GRAB_RETRY_S)  # a failing device answers at once: don't spin
         return None
+
+    def _frame_settings(self, cap) -> dict[str, float]:
+        """Exposure, gain and white balance as the device reads them after this frame (the
+        backend's units; kelvin), for those it read back a value for at connect: what a UVC
+        camera tells of a frame (OpenCV has no per-frame metadata)."""
+        out = {}
+        for setting, name, prop in (("exposure", "exposure", cv2.CAP_PROP_EXPOSURE),
+                                    ("gain", "gain", cv2.CAP_PROP_GAIN),
+                                    ("white_balance", "white_balance_k",
+                                     cv2.CAP_PROP_WB_TEMPERATURE)):
+            if self.settings.get(setting, 0.0) > 0:
+                value = float(cap.get(prop))
+                if math.isfinite(value) and value > 0:
+                    out[name] = value
+        return out
 
     def _lock_settings(self) -> None:
         """Auto exposure and auto white balance off; exposure, gain and white balance pinned

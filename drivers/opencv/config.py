@@ -32,15 +32,16 @@ class OpenCVCameraConfig:
 
     device: str
     exposure: float | None = field(default=None, metadata=option(
-        "--exposure", "OpenCV camera: exposure, locked (backend units; default: keep the "
-        "device's current value)", type=float))
+        "--exposure", "OpenCV or RealSense camera: exposure, locked (the backend's units; "
+        "default: keep the device's current value)", type=float))
     gain: float | None = field(default=None, metadata=option(
-        "--gain", "OpenCV camera: gain, locked (backend units)", type=float))
+        "--gain", "OpenCV or RealSense camera: gain, locked (the backend's units)", type=float))
     white_balance: float | None = field(default=None, metadata=option(
-        "--white-balance", "OpenCV camera: white balance in Kelvin, locked", type=float))
+        "--white-balance", "OpenCV or RealSense camera: white balance in kelvin, locked",
+        type=float))
     resolution: tuple[int, int] | None = field(default=None, metadata=option(
-        "--resolution", "OpenCV camera: WIDTHxHEIGHT to request (intrinsics are scaled to it)",
-        metavar="WxH"))
+        "--resolution", "OpenCV, GenICam or RealSense camera: WIDTHxHEIGHT to ask for "
+        "(intrinsics are scaled to it; RealSense: the colour mode)", metavar="WxH"))
     backend: str | None = field(default=None, metadata=option(
         "--camera-backend", "OpenCV camera: capture API (any, v4l2, gstreamer, ffmpeg, ...)"))
     timeout: float = 2.0

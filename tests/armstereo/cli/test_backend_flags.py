@@ -38,7 +38,7 @@ def test_opencv_settings_reach_the_camera():
 
 
 @pytest.mark.parametrize("argv,owner", [
-    (["--exposure", "5"], "--camera opencv"),
+    (["--exposure", "5"], "--camera opencv or --camera realsense"),
     (["--host", "10.0.0.2"], "--arm ur"),
     (["--camera-noise", "1", "--camera", "opencv:0"], "--camera mock"),
     (["--joint-noise", "0.001", "--arm", "ur", "--host", "h"], "--arm mock"),

@@ -75,3 +75,21 @@ def test_a_file_that_is_not_a_recording_exits_5(tmp_path, capsys):
     bad.write_bytes(b"not an mcap file")
     assert main(["check", str(bad)]) == 5
     assert "not an MCAP file" in capsys.readouterr().err
+
+
+def test_check_warns_when_the_mock_shot_the_two_views_at_different_exposures(tmp_path, capsys):
+    """The realistic mock changes exposure and white balance between views (as a camera left
+    in auto does) and says so per frame; the ideal one reports nothing, so check is silent."""
+    for profile in ("realistic", "ideal"):
+        out = tmp_path / f"{profile}.mcap"
+        assert main(["-q", "capture", "--mock-profile", profile, "--out", str(out)]) == 0
+        capsys.readouterr()
+        settings = run_json(capsys, out)["pairs"][0]["camera_settings"]
+        if profile == "ideal":
+            assert settings == {"left": None, "right": None, "differences": [], "warnings": []}
+            continue
+        assert set(settings["left"]) == {"exposure", "balance_ratio"}
+        assert [d["what"] for d in settings["differences"]] == ["brightness", "white balance"]
+        assert any("differ in brightness" in w for w in settings["warnings"])
+        assert main(["check", str(out)]) == 0
+        assert "warning: views 0 and 1: the two views differ in" in capsys.readouterr().out

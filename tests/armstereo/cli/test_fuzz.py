@@ -52,6 +52,7 @@ BASELINES: dict[str, list[str]] = {
              "--out", "{out}.mcap"],
     "calibrate": ["calibrate", "--board", "chessboard:17x12:0.016", "--out", "{out}.toml",
                   "--dry-run"],
+    "cameras": ["cameras", "--backend", "mock"],
     "export": ["export", "{sample}", "--to", "ros2", "--out", "{out}"],
     "import": ["import", "{bag}", "--image-topic", "/camera/image", "--out", "{out}.mcap"],
 }

@@ -254,3 +254,23 @@ def test_the_ringing_peaks_at_the_profiles_amplitude_on_its_largest_joint(model)
     deviation = np.max(np.abs(arm._true_q() - arm._q))
     expected = ring.settle_amplitude_rad * math.exp(-t / ring.settle_time_constant_s)
     assert deviation == pytest.approx(expected, rel=1e-6)
+
+
+def test_the_realistic_camera_reports_the_exposure_and_white_balance_it_shot_with(model):
+    arm = connected(model, seed=4)
+    cam = backends.build_camera("mock", backends.camera_config("mock", profile="realistic",
+                                                               seed=4), model, arm)
+    with cam:
+        frames = [cam.grab() for _ in range(3)]  # the same pose: only the sensor changes
+    reports = [f.settings for f in frames]
+    assert all(set(r) == {"exposure", "balance_ratio"} and r["balance_ratio"][1] == 1.0
+               for r in reports)
+    assert len({r["exposure"] for r in reports}) == 3
+    # what it reports is what the images show: green level ratios follow the exposures
+    green = [float(f.image[..., 1].mean()) for f in frames]
+    for k in (1, 2):
+        assert green[k] / green[0] == pytest.approx(
+            reports[k]["exposure"] / reports[0]["exposure"], rel=0.002)
+    ideal = connected(model, profile="ideal")
+    with backends.build_camera("mock", backends.camera_config("mock"), model, ideal) as plain:
+        assert plain.grab().settings is None

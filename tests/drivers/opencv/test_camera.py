@@ -194,3 +194,12 @@ def test_device_names_and_backends(dev):
         OpenCVCamera(0, INTRINSICS, backend="quicktime")
     with pytest.raises(ConfigError, match="flush_frames"):
         OpenCVCamera(0, INTRINSICS, flush_frames=-1)
+
+
+def test_each_frame_reports_the_settings_the_device_reads_back(dev):
+    with OpenCVCamera(0, INTRINSICS, timeout=0.2, exposure=120.0) as cam:
+        first = cam.grab()
+        dev.captures[0].props[cv2.CAP_PROP_EXPOSURE] = 180.0  # the driver changed it under us
+        second = cam.grab()
+    assert first.settings == {"exposure": 120.0, "gain": 4.0, "white_balance_k": 4600.0}
+    assert second.settings["exposure"] == 180.0
