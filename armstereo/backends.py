@@ -108,9 +108,14 @@ def missing_extra(backend: Backend) -> str | None:
         except (ImportError, ValueError):
             found = False
         if not found:
-            return (f"the {backend.name} {backend.kind} needs the optional extra: pip install "
-                    f"'armstereo[{backend.extra}]' ({module} is not installed)")
+            return _extra_message(f"the {backend.name} {backend.kind}", backend.extra, module)
     return None
+
+
+def _extra_message(who: str, extra: str, module: str) -> str:
+    """One wording for every missing extra, whether a backend or a bridge needs it."""
+    return (f"{who} needs the optional extra: pip install 'armstereo[{extra}]' ({module} is "
+            "not installed)")
 
 
 def require_backend_extra(backend: Backend) -> None:
@@ -248,8 +253,8 @@ class Extra:
 
 
 EXTRAS: dict[str, Extra] = {
-    "ros2": Extra("ros2", ("rosbags",), "ROS 2 bags (armstereo export --to ros2, "
-                  "armstereo import)"),
+    "ros2": Extra("ros2", ("rosbags",), "reading or writing a ROS 2 bag (armstereo export "
+                  "--to ros2, armstereo import)"),
     "genicam": Extra("genicam", ("harvesters",), "the genicam camera"),
     "realsense": Extra("realsense", ("pyrealsense2",), "the realsense camera"),
 }
@@ -263,6 +268,4 @@ def require_extra(name: str) -> None:
         try:
             importlib.import_module(module)
         except ImportError as err:
-            raise ConfigError(f"{extra.purpose} need(s) the optional '{name}' extra "
-                              f"({module} is not installed): pip install 'armstereo[{name}]'"
-                              ) from err
+            raise ConfigError(_extra_message(extra.purpose, name, module)) from err
