@@ -20,13 +20,10 @@ import math
 import numpy as np
 
 from armstereo.transforms import make_T, rot_z
-from drivers.mock.scene import (
-    SCENE_CENTER,
-    Primitive,
-    Rectangle,
-    Scene,
-    SurfaceTexture,
-)
+from drivers.mock.primitives import Primitive, Rectangle
+from drivers.mock.render import Scene
+from drivers.mock.scene import SCENE_CENTER
+from drivers.mock.texture import SurfaceTexture
 
 BOARD_THICKNESS_M = 0.003  # the board's face sits this far above the table top (a stiff board)
 INK_GREY = 25.0  # printed black, grey level under full light

@@ -37,7 +37,8 @@ from drivers.mock.profile import (
     offset_transform,
     rng_for,
 )
-from drivers.mock.scene import Scene, default_table_scene
+from drivers.mock.render import Scene
+from drivers.mock.scene import default_table_scene
 
 if TYPE_CHECKING:
     from armstereo.kinematics import ArmModel
