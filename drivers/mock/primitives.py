@@ -284,3 +284,44 @@ class Sphere(Primitive):
         r = self.radius
         return np.array([[i, j, k] for i in (-r, r) for j in (-r, r) for k in (-r, r)])
 
+
+
+class BowedRectangle(Rectangle):
+    """A rectangle ``|x| <= half_x, |y| <= half_y`` bent into the shallow paraboloid
+    ``z = curv_x x^2 + curv_y y^2 + z0`` (local frame, m), ``z0`` chosen so that the corners lie
+    in z = 0: a printed sheet that does not lie flat. Its normal is local +z tilted by the
+    slope; it is visible from both sides. Surface coordinates are (x, y), which differ from arc
+    lengths by far less than a micrometre for bows of a millimetre over decimetres."""
+
+    def __init__(self, T_base_local: np.ndarray, half_x: float, half_y: float,
+                 texture, *, curv_x: float, curv_y: float, name: str = "bowed rectangle"):
+        super().__init__(T_base_local, half_x, half_y, texture, name)
+        self.curv_x, self.curv_y = float(curv_x), float(curv_y)
+        self.z0 = -(self.curv_x * self.half_x ** 2 + self.curv_y * self.half_y ** 2)
+
+    def _hit_local(self, o, dx, dy, dz):
+        kx, ky = o.dtype.type(self.curv_x), o.dtype.type(self.curv_y)
+        a = kx * dx * dx + ky * dy * dy
+        b = 2.0 * (kx * o[0] * dx + ky * o[1] * dy) - dz
+        c = kx * o[0] ** 2 + ky * o[1] ** 2 + o.dtype.type(self.z0) - o[2]
+        disc = b * b - 4.0 * a * c
+        q = -0.5 * (b + np.copysign(np.sqrt(np.maximum(disc, 0.0)), b))
+        t1, t2 = q / a, c / q  # the stable pair of roots; t2 is the plane's when a = 0
+        t = np.inf
+        for root in (t1, t2):
+            x, y = o[0] + root * dx, o[1] + root * dy
+            t = np.minimum(t, _miss_where(root, ~(disc >= 0) | (np.abs(x) > self.half_x)
+                                         | (np.abs(y) > self.half_y)))
+        return t
+
+    def _normal_local(self, p):
+        n = np.stack([-2.0 * self.curv_x * p[0], -2.0 * self.curv_y * p[1], np.ones_like(p[0])])
+        return n / np.linalg.norm(n, axis=0, keepdims=True)
+
+    def normals(self, points_base: np.ndarray) -> np.ndarray:
+        return Primitive.normals(self, points_base)
+
+    def _corners_local(self):
+        hx, hy = self.half_x, self.half_y
+        return np.array([[sx * hx, sy * hy, z] for sx in (-1, 1) for sy in (-1, 1)
+                         for z in (0.0, self.z0)], dtype=float)
