@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from armstereo.errors import RecordingError
+from armstereo.photometric.correct import PhotometricOptions
 from armstereo.reconstruct.views import Reconstruction, reconstruct_views
 from armstereo.recording import Pair
 
@@ -32,8 +33,9 @@ class PairReconstruction(Reconstruction):
 
     @property
     def pipeline_time_s(self) -> float:
-        """decode + rectify + match + triangulate + write (PLY), what the 0.5 s target counts."""
-        stages = ("decode", "rectify", "match", "triangulate", "write")
+        """decode + photometric + rectify + match + triangulate + write (PLY), what the 0.5 s
+        target counts."""
+        stages = ("decode", "photometric", "rectify", "match", "triangulate", "write")
         return float(sum(self.timings_s.get(k, 0.0) for k in stages))
 
 
@@ -58,9 +60,13 @@ def _view_inputs(pair: Pair, which: str):
 
 def reconstruct_pair(pair: Pair, *, method: str = "birchfield", max_disparity: int | str = "auto",
                      near: float | None = None, far: float | None = None,
-                     stereo_options: dict | None = None) -> PairReconstruction:
+                     stereo_options: dict | None = None,
+                     photometric: bool | PhotometricOptions = True) -> PairReconstruction:
     """Rectify, match and triangulate one recorded pair (``armstereo.recording.Pair``);
-    ``max_disparity`` is the matcher's budget ("auto" or a number of labels).
+    ``max_disparity`` is the matcher's budget ("auto" or a number of labels). ``photometric``
+    as :func:`armstereo.reconstruct.views.reconstruct_views` takes it; the camera's vignetting
+    is the options' model (``armstereo.photometric.correct.for_recording(photometric,
+    recording.metadata)`` takes it from the recording's mount file).
 
     Raises RecordingError for a pair without poses, calibration or images, ConfigError for bad
     options and StereoError when the geometry cannot be rectified.
@@ -71,7 +77,8 @@ def reconstruct_pair(pair: Pair, *, method: str = "birchfield", max_disparity: i
     decode_s = time.perf_counter() - t0
     recon = reconstruct_views(img1, img2, intr1.K, intr2.K, T1, T2, dist1=intr1.dist,
                               dist2=intr2.dist, method=method, near=near, far=far,
-                              disparity_budget=max_disparity, stereo_options=stereo_options)
+                              disparity_budget=max_disparity, stereo_options=stereo_options,
+                              photometric=photometric)
     left, right = (pair.right, pair.left) if recon.swapped else (pair.left, pair.right)
     fields = {f: getattr(recon, f) for f in Reconstruction.__dataclass_fields__}
     fields["timings_s"] = {"decode": decode_s, **recon.timings_s}

@@ -18,7 +18,7 @@ from __future__ import annotations
 import logging
 import time
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
@@ -26,6 +26,13 @@ import numpy as np
 from armstereo.camera_model import Intrinsics
 from armstereo.errors import ConfigError, StereoError
 from armstereo.io.images import colorize_disparity
+from armstereo.photometric.correct import (
+    PhotometricOptions,
+    as_options,
+    equalize_exposure,
+    record,
+    remove_vignetting,
+)
 from armstereo.reconstruct.rectify import RectifiedPair, rectified_geometry, rectify_pair
 from armstereo.reconstruct.stereo import METHODS, compute_disparity
 from armstereo.reconstruct.triangulate import (
@@ -59,6 +66,8 @@ class Reconstruction:
     points_base: np.ndarray
     colors_bgr: np.ndarray
     timings_s: dict[str, float] = field(default_factory=dict)
+    # What the photometric correction did (armstereo.photometric.correct.record).
+    photometric: dict = field(default_factory=dict)
 
     @property
     def points(self) -> np.ndarray:
@@ -92,7 +101,8 @@ def reconstruct_views(image1: np.ndarray, image2: np.ndarray, K1: np.ndarray, K2
                       method: str = "birchfield", near: float | None = None,
                       far: float | None = None, min_disparity: float | None = None,
                       max_disparity: float | None = None, disparity_budget: int | str = "auto",
-                      stereo_options: dict | None = None) -> Reconstruction:
+                      stereo_options: dict | None = None,
+                      photometric: bool | PhotometricOptions = True) -> Reconstruction:
     """Rectify, match and triangulate two views of a static scene.
 
     ``image1``/``image2``: uint8 grey or BGR images. ``K1``/``K2``: 3x3 camera matrices,
@@ -103,7 +113,11 @@ def reconstruct_views(image1: np.ndarray, image2: np.ndarray, K1: np.ndarray, K2
     rectified pair, f b / Z; 0 = infinity); unset ends are guessed from the scene (the plane
     z = 0 of base) or defaults. ``disparity_budget`` caps the labels searched ("auto" = as the
     range needs, up to 256). ``method``: "birchfield" (default) or "sgbm";
-    ``stereo_options`` go to the matcher.
+    ``stereo_options`` go to the matcher. ``photometric``: what is corrected before matching
+    (:mod:`armstereo.photometric.correct`): True (default) equalises the pair's exposure and
+    white balance and, when the options carry the camera's vignetting model (a mount file's
+    ``[vignetting]``), divides it out; False corrects nothing. What was done is in
+    ``result.photometric``.
 
     Raises ConfigError for bad options, StereoError when the pair cannot be rectified or
     matched (no baseline, views that do not overlap, mismatched images).
@@ -111,6 +125,9 @@ def reconstruct_views(image1: np.ndarray, image2: np.ndarray, K1: np.ndarray, K2
     if method not in METHODS:
         raise ConfigError(f"--method must be one of {', '.join(METHODS)}, got {method!r}")
     timings: dict[str, float] = {}
+    photo = as_options(photometric)
+    with _timed(timings, "photometric"):
+        image1, image2 = remove_vignetting(image1, image2, photo)
     with _timed(timings, "rectify"):
         intr1, T1 = _view(image1, K1, dist1, T_base_cam1, "1")
         intr2, T2 = _view(image2, K2, dist2, T_base_cam2, "2")
@@ -122,6 +139,10 @@ def reconstruct_views(image1: np.ndarray, image2: np.ndarray, K1: np.ndarray, K2
         rect = rectify_pair(image1, image2, intr1.K, intr1.dist, T1, intr2.K, intr2.dist, T2,
                             depth_range=(window.near, window.far))
         window = fit_to_canvas(window, rect.geometry, auto=disparity_budget == "auto")
+    with _timed(timings, "photometric", add=True):
+        right, gains = equalize_exposure(rect.left, rect.right, window.max_disparity, photo,
+                                         left_mask=rect.left_mask, right_mask=rect.right_mask)
+        rect = rect if right is rect.right else replace(rect, right=right)
     log.debug("left = view %d%s, rotation %.0f deg, baseline %.1f mm, depth %.3f-%.3f m -> "
               "disparities 0..%d (%s)", 2 if swapped else 1, " (swapped)" if swapped else "",
               rect.rotation_deg, rect.baseline * 1000, window.near, window.far,
@@ -134,7 +155,7 @@ def reconstruct_views(image1: np.ndarray, image2: np.ndarray, K1: np.ndarray, K2
         points, colors = point_cloud(disparity, rect.geometry, rect.left)
     return Reconstruction(swapped=swapped, method=method, window=window, rectified=rect,
                           disparity=disparity, points_base=points, colors_bgr=colors,
-                          timings_s=timings)
+                          timings_s=timings, photometric=record(photo, gains))
 
 
 def _view(image: np.ndarray, K, dist, T, which: str) -> tuple[Intrinsics, np.ndarray]:
@@ -166,9 +187,9 @@ def _depth_range(geometry, near, far, min_disparity, max_disparity):
 
 
 @contextmanager
-def _timed(timings: dict[str, float], stage: str):
+def _timed(timings: dict[str, float], stage: str, add: bool = False):
     t0 = time.perf_counter()
     try:
         yield
     finally:
-        timings[stage] = time.perf_counter() - t0
+        timings[stage] = (timings.get(stage, 0.0) if add else 0.0) + time.perf_counter() - t0
