@@ -119,11 +119,13 @@ def calibration_table(runs: list[dict]) -> list[str]:
 
 def summary_table(runs: list[dict]) -> list[str]:
     lines = ["| matcher | camera as | depth err % | density % | points mm | plane tilt deg | "
-             "plane height mm | objects found | phantoms |", "|---|---|---|---|---|---|---|---|---|"]
+             "plane height mm | objects found | phantoms |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for method in METHODS:
         for name in VARIANTS:
             rs = [r["results"][f"{method}|{name}"] for r in runs]
-            sc = [x.get("scene") or {} for x in rs]
+            sc = [x.get("scene") if "plane_tilt_deg" in (x.get("scene") or {}) else {}
+                  for x in rs]
             lines.append(
                 f"| {method} | {name} | "
                 f"{med([x['accuracy']['median_abs_rel_depth_error'] * 100 for x in rs], '.3f')}"
@@ -143,7 +145,7 @@ def per_seed_table(runs: list[dict], name: str) -> list[str]:
     for r in runs:
         for method in METHODS:
             x = r["results"][f"{method}|{name}"]
-            s = x.get("scene") or {}
+            s = x.get("scene") if "plane_tilt_deg" in (x.get("scene") or {}) else {}
             lines.append(
                 f"| {r['seed']} | {method} | "
                 f"{x['accuracy']['median_abs_rel_depth_error'] * 100:.3f} | "

@@ -52,15 +52,18 @@ def compare_mount(recon, pair, metadata: dict[str, str], truth: SceneTruth | Non
     """How one reconstruction of the demo's pair scores: depth, points and (with ``truth``)
     the scene step, without writing anything (the 'before' side of a calibration)."""
     from armstereo.evaluation.scene_score import score_scene
-    from armstereo.scene import SceneCloud, SceneOptions, analyze_scene, check_cloud
+    from armstereo.scene import SceneCloud, SceneError, SceneOptions, analyze_scene, check_cloud
 
     acc = score_reconstruction(recon.depth_original, pair, swapped=recon.swapped)
     out = {"accuracy": acc.as_dict(), "point_error_mm": point_error_mm(recon.points_base,
                                                                        metadata),
            "points": int(len(recon.points_base)), "photometric": recon.photometric}
     if truth is not None and len(recon.points_base):
-        cloud = check_cloud(SceneCloud(np.asarray(recon.points_base, dtype=float),
-                                       recon.colors_bgr, "base", "armstereo demo", {}))
-        out["scene"] = scene_summary(score_scene(analyze_scene(cloud, SceneOptions()),
-                                                 truth).as_dict())
+        try:
+            cloud = check_cloud(SceneCloud(np.asarray(recon.points_base, dtype=float),
+                                           recon.colors_bgr, "base", "armstereo demo", {}))
+            out["scene"] = scene_summary(score_scene(analyze_scene(cloud, SceneOptions()),
+                                                     truth).as_dict())
+        except SceneError as err:  # a cloud this wrong has no level table: say so
+            out["scene"] = {"error": str(err)}
     return out

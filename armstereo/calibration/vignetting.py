@@ -9,8 +9,8 @@ unknown factor (exposure, white balance, the board's tilt to the light). The fit
     I[s] = a[view(s)] * (1 + k1 r[s]^2 + k2 r[s]^4)
 
 over samples ``s`` of white paper (grey level ``I``, radius ``r`` from the principal point over
-the image's half-diagonal), with one ``a`` per view and ``k1``, ``k2`` shared, by alternating
-least squares with Huber weights: a glare on the board's laminate or a fleck on the lens are
+the image's half-diagonal), with one ``a`` per view and ``k1``, ``k2`` shared, by Gauss-Newton
+with Huber weights: a glare on the board's laminate or a fleck on the lens are
 outliers, not fall-off. Samples keep a quarter of a square from any ink (blur and a corner's
 misfit stay out), away from saturation and from the image border. The views that put the board
 into the image corners (:mod:`armstereo.calibration.coverage`) are what reaches the corners;
@@ -35,7 +35,7 @@ INK_CLEARANCE_SQUARES = 0.25  # samples keep this far from any ink
 MIN_GREY, MAX_GREY = 20.0, 250.0  # outside: too dark to trust, or saturated
 BORDER_PX = 3.0  # samples this close to the image border are left out
 HUBER_K = 2.0  # residuals beyond this many robust sigmas are down-weighted
-ROUNDS = 25
+ROUNDS = 12
 MIN_SAMPLES = 500
 CORNER_RADIUS = 0.85  # the fit reaches the corners when samples lie beyond this radius
 
@@ -139,23 +139,34 @@ def estimate_vignetting(images: Sequence[np.ndarray], board: Board, intrinsics: 
 
 
 def _alternate(I: np.ndarray, r2: np.ndarray, view: np.ndarray, n_views: int):
-    """(k (2,), a (views,), weights, robust relative sigma) by alternating least squares."""
+    """(k (2,), a (views,), weights, robust relative sigma): Gauss-Newton on all unknowns at
+    once (a view that does not cover the centre trades its scale against the fall-off, which
+    alternating between the two only creeps along), Huber weights re-estimated each round."""
+    basis = np.stack([r2, r2 * r2], axis=1)
     k = np.zeros(2)
     a = np.array([np.median(I[view == i]) if np.any(view == i) else 1.0
                   for i in range(n_views)])
     w = np.ones_like(I)
     sigma = 0.0
-    basis = np.stack([r2, r2 * r2], axis=1)
     for _ in range(ROUNDS):
         V = 1.0 + basis @ k
-        # per view: a = sum(w I V) / sum(w V^2)
-        a = (np.bincount(view, w * I * V, n_views)
-             / np.maximum(np.bincount(view, w * V * V, n_views), 1e-12))
         ai = a[view]
-        # shared: I / a - 1 = basis @ k, each row weighted by w a^2 (its variance is ~1 / a^2)
-        sw = np.sqrt(w) * ai
-        k = np.linalg.lstsq(basis * sw[:, None], (I / ai - 1.0) * sw, rcond=None)[0]
-        rel = I / (ai * (1.0 + basis @ k)) - 1.0
+        e = I - ai * V
+        # normal equations of e = dI/da da + dI/dk dk, unknowns (a per view, k1, k2)
+        Jk = ai[:, None] * basis
+        A = np.zeros((n_views + 2, n_views + 2))
+        g = np.zeros(n_views + 2)
+        A[np.arange(n_views), np.arange(n_views)] = np.bincount(view, w * V * V, n_views)
+        for j in range(2):
+            A[:n_views, n_views + j] = np.bincount(view, w * V * Jk[:, j], n_views)
+        A[n_views:, :n_views] = A[:n_views, n_views:].T
+        A[n_views:, n_views:] = (Jk * w[:, None]).T @ Jk
+        g[:n_views] = np.bincount(view, w * V * e, n_views)
+        g[n_views:] = (Jk * w[:, None]).T @ e
+        A[np.arange(n_views), np.arange(n_views)] += 1e-12  # a view with no samples left
+        step = np.linalg.solve(A, g)
+        a, k = a + step[:n_views], k + step[n_views:]
+        rel = I / (a[view] * (1.0 + basis @ k)) - 1.0
         sigma = 1.4826 * float(np.median(np.abs(rel - np.median(rel))))
         scaled = np.abs(rel) / max(HUBER_K * sigma, 1e-9)
         w = np.where(scaled <= 1.0, 1.0, 1.0 / np.maximum(scaled, 1e-12))

@@ -221,7 +221,10 @@ def _print_before_after(report: dict) -> None:
     b, a = before["point_error_mm"]["median"], after["point_error_mm"]["median"]
     if b is not None and a is not None:
         print(f"  {'points:':<16}{b:>7.2f} mm -> {a:.2f} mm from the true surfaces")
-    if "scene" in before:
+    if "error" in before.get("scene", {}):
+        print(f"  {'scene:':<16}no level table with the bundled mount file "
+              f"({before['scene']['error']})")
+    elif "scene" in before:
         sb, sa = before["scene"], after["scene"]
         print(f"  {'table fit:':<16}{sb['plane_tilt_deg']:>6.2f} deg, "
               f"{sb['plane_height_error_m'] * 1000:+.1f} mm -> {sa['plane_tilt_deg']:.2f} deg, "
