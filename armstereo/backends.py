@@ -176,3 +176,34 @@ def read_ur_kinematics(host: str, model: str | None = None, **kwargs: Any):
     :func:`drivers.ur.primary.read_arm_kinematics` for ``port`` and ``timeout``."""
     primary = importlib.import_module("drivers.ur.primary")
     return primary.read_arm_kinematics(host, model, **kwargs)
+
+
+# -- optional extras: ecosystem bridges installed with ``pip install armstereo[name]`` ------------
+
+
+@dataclass(frozen=True)
+class Extra:
+    """An optional extra: the pip extra's name, the modules it brings and what needs them."""
+
+    name: str
+    modules: tuple[str, ...]
+    purpose: str
+
+
+EXTRAS: dict[str, Extra] = {
+    "ros2": Extra("ros2", ("rosbags",), "ROS 2 bags (armstereo export --to ros2, "
+                  "armstereo import)"),
+}
+
+
+def require_extra(name: str) -> None:
+    """Import the modules of extra ``name``, or raise ConfigError in one line saying how to
+    install it (``pip install 'armstereo[name]'``)."""
+    extra = EXTRAS[name]
+    for module in extra.modules:
+        try:
+            importlib.import_module(module)
+        except ImportError as err:
+            raise ConfigError(f"{extra.purpose} need(s) the optional '{name}' extra "
+                              f"({module} is not installed): pip install 'armstereo[{name}]'"
+                              ) from err

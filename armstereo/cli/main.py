@@ -17,7 +17,7 @@ from armstereo.errors import ArmstereoError
 
 SUBCOMMANDS = ["demo", "capture", "inspect", "reconstruct", "stereo", "eval", "plan", "sweep",
                "robot_info", "check", "reconstruct_images", "study", "analyze", "fuse", "scan",
-               "calibrate"]
+               "calibrate", "export", "import"]
 
 log = logging.getLogger("armstereo")
 

@@ -52,6 +52,8 @@ BASELINES: dict[str, list[str]] = {
              "--out", "{out}.mcap"],
     "calibrate": ["calibrate", "--board", "chessboard:17x12:0.016", "--out", "{out}.toml",
                   "--dry-run"],
+    "export": ["export", "{sample}", "--to", "ros2", "--out", "{out}"],
+    "import": ["import", "{bag}", "--image-topic", "/camera/image", "--out", "{out}.mcap"],
 }
 
 
@@ -91,6 +93,7 @@ def argv_for(command: str, target: str, value: str, tmp: Path) -> tuple[list[str
     out = tmp / "out"
     argv = [a.replace("{out}", str(out)).replace("{cloud}", str(_cloud(tmp)))
             .replace("{sample}", str(_sample(tmp))) for a in BASELINES[command]]
+    argv = [str(_bag(tmp)) if a == "{bag}" else a for a in argv]
     if target.startswith("#"):
         positionals = [i for i, a in enumerate(argv[1:], 1)
                        if not a.startswith("-") and not argv[i - 1].startswith("--")]
@@ -110,6 +113,16 @@ def _sample(tmp: Path) -> Path:
     path = tmp / "sample.mcap"
     if not path.exists():
         shutil.copyfile(SAMPLE_RECORDING, path)
+    return path
+
+
+def _bag(tmp: Path) -> Path:
+    """The sample recording as a ROS 2 bag, for ``import``."""
+    from armstereo.ros2.export import export_recording
+
+    path = tmp / "sample_bag"
+    if not path.exists():
+        export_recording(_sample(tmp), path)
     return path
 
 
