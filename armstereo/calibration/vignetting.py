@@ -10,11 +10,12 @@ unknown factor (exposure, white balance, the board's tilt to the light). The fit
 
 over samples ``s`` of white paper (grey level ``I``, radius ``r`` from the principal point over
 the image's half-diagonal), with one ``a`` per view and ``k1``, ``k2`` shared, by Gauss-Newton
-with Huber weights: a glare on the board's laminate or a fleck on the lens are
-outliers, not fall-off. Samples keep a quarter of a square from any ink (blur and a corner's
-misfit stay out), away from saturation and from the image border. The views that put the board
-into the image corners (:mod:`armstereo.calibration.coverage`) are what reaches the corners;
-without them the corners are extrapolated, and the fit says so (``max_radius``).
+with robust weights (Huber for a few rounds, then Tukey's biweight): a glare on the board's
+laminate or a fleck on the lens are outliers, not fall-off. Samples keep a quarter of a square
+from any ink (blur and a corner's misfit stay out), away from saturation and from the image
+border. The views that put the board into the image corners
+(:mod:`armstereo.calibration.coverage`) are what reaches the corners; without them the corners
+are extrapolated, and the fit says so (``max_radius``).
 """
 
 from __future__ import annotations
@@ -34,8 +35,10 @@ SAMPLE_STEP_SQUARES = 0.25  # sample grid on the sheet, in squares
 INK_CLEARANCE_SQUARES = 0.25  # samples keep this far from any ink
 MIN_GREY, MAX_GREY = 20.0, 250.0  # outside: too dark to trust, or saturated
 BORDER_PX = 3.0  # samples this close to the image border are left out
-HUBER_K = 2.0  # residuals beyond this many robust sigmas are down-weighted
-ROUNDS = 12
+HUBER_K = 2.0  # residuals beyond this many robust sigmas are down-weighted (first rounds)
+HUBER_ROUNDS = 4
+TUKEY_C = 4.685  # then Tukey's biweight: no weight beyond this many robust sigmas
+ROUNDS = 14
 MIN_SAMPLES = 500
 CORNER_RADIUS = 0.85  # the fit reaches the corners when samples lie beyond this radius
 
@@ -141,13 +144,14 @@ def estimate_vignetting(images: Sequence[np.ndarray], board: Board, intrinsics: 
 def _alternate(I: np.ndarray, r2: np.ndarray, view: np.ndarray, n_views: int):
     """(k (2,), a (views,), weights, robust relative sigma): Gauss-Newton on all unknowns at
     once (a view that does not cover the centre trades its scale against the fall-off, which
-    alternating between the two only creeps along), Huber weights re-estimated each round."""
+    alternating between the two only creeps along), robust weights re-estimated each round."""
     basis = np.stack([r2, r2 * r2], axis=1)
     k = np.zeros(2)
     a = np.array([np.median(I[view == i]) if np.any(view == i) else 1.0
                   for i in range(n_views)])
     w = np.ones_like(I)
     sigma = 0.0
+    rounds_done = 0
     for _ in range(ROUNDS):
         V = 1.0 + basis @ k
         ai = a[view]
@@ -168,9 +172,19 @@ def _alternate(I: np.ndarray, r2: np.ndarray, view: np.ndarray, n_views: int):
         a, k = a + step[:n_views], k + step[n_views:]
         rel = I / (a[view] * (1.0 + basis @ k)) - 1.0
         sigma = 1.4826 * float(np.median(np.abs(rel - np.median(rel))))
-        scaled = np.abs(rel) / max(HUBER_K * sigma, 1e-9)
-        w = np.where(scaled <= 1.0, 1.0, 1.0 / np.maximum(scaled, 1e-12))
+        w = _weights(rel, sigma, redescending=rounds_done >= HUBER_ROUNDS)
+        rounds_done += 1
     return k, a, w, sigma
+
+
+def _weights(rel: np.ndarray, sigma: float, redescending: bool) -> np.ndarray:
+    """Huber weights (a convex start), then Tukey's biweight, which gives a glare's samples
+    no weight at all: hundreds of them at a fraction of the weight still pull the fall-off."""
+    if not redescending:
+        scaled = np.abs(rel) / max(HUBER_K * sigma, 1e-9)
+        return np.where(scaled <= 1.0, 1.0, 1.0 / np.maximum(scaled, 1e-12))
+    u = rel / max(TUKEY_C * sigma, 1e-9)
+    return np.where(np.abs(u) < 1.0, (1.0 - u * u) ** 2, 0.0)
 
 
 def _k_std(r2: np.ndarray, w: np.ndarray, sigma: float) -> tuple[float, float]:
