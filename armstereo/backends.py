@@ -4,8 +4,8 @@ This is the one place in ``armstereo`` that reaches into ``drivers``, and only l
 importing armstereo never imports a vendor SDK or a mock. Each backend lives in
 ``drivers/<name>/`` with a ``config.py`` holding a keyword-only dataclass that validates itself
 (``MockArmConfig``, ``URArmConfig``, ``MockCameraConfig``, ``OpenCVCameraConfig``). The fields'
-metadata (made with :func:`option`) are the backend's command-line flags, so a backend's flags
-are written once, beside its driver.
+metadata (made with :func:`armstereo.flags.option`) are the backend's command-line flags, so a
+backend's flags are written once, beside its driver.
 
 Names used on the command line: arms ``mock`` and ``ur``; cameras ``mock`` and
 ``opencv:<index, path or pipeline>``.
@@ -19,12 +19,13 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from armstereo.errors import ConfigError
+from armstereo.flags import option  # noqa: F401  (re-exported: the name's old home)
 
 if TYPE_CHECKING:
     import numpy as np
 
     from armstereo.devices import Arm, Camera
-    from armstereo.kinematics import ArmModel
+    from armstereo.robot.arm_model import ArmModel
 
 
 @dataclass(frozen=True)
@@ -55,12 +56,6 @@ CAMERAS: dict[str, Backend] = {
                       "USB or GStreamer camera through OpenCV (opencv:<index, path or pipeline>)"),
 }
 ARM_NAMES = tuple(ARMS)
-
-
-def option(flag: str, help: str, **argparse_kwargs: Any) -> dict[str, Any]:  # noqa: A002
-    """Field metadata making a config field a command-line flag: ``field(default=...,
-    metadata=option("--exposure", "exposure in the backend's units", type=float))``."""
-    return {"flag": flag, "help": help, "argparse": argparse_kwargs}
 
 
 def arm_backend(name: str) -> Backend:

@@ -11,8 +11,8 @@ leave-one-out prediction against the true error. Seeds 0-7 on the UR5e with the 
 chessboard are the ones the defaults were chosen on; seeds 100-107, a UR10e and a ChArUco
 board were not looked at while choosing them (held out).
 
-    .venv/bin/python bench/calibrate.py [--seeds 8] [--timing-only] [--repeat 3]
-    .venv/bin/python bench/calibrate.py --out bench/results/calibrate.md
+    .venv/bin/python -m bench.calibrate [--seeds 8] [--timing-only] [--repeat 3]
+    .venv/bin/python -m bench.calibrate --out bench/results/calibrate.md
 """
 
 from __future__ import annotations
@@ -33,7 +33,8 @@ from armstereo.calibration.intrinsics import board_pose, calibrate_intrinsics
 from armstereo.calibration.mount_file import truth_error
 from armstereo.calibration.poses import pose_difference
 from armstereo.calibration.synthetic import simulate_session
-from armstereo.kinematics import ArmModel
+from armstereo.robot.arm_model import ArmModel
+from bench.harness import write_report
 
 TUNING = ("ur5e", "chessboard:17x12:0.016", 0)
 HELD_OUT = (("ur5e", "chessboard:17x12:0.016", 100), ("ur10e", "chessboard:17x12:0.016", 0),
@@ -154,9 +155,7 @@ def main() -> None:
         for robot, spec, seed0 in HELD_OUT:
             lines += accuracy(robot, spec, seed0, args.seeds)
     text = "\n".join(lines)
-    print(text)
-    if args.out:
-        args.out.write_text(text + "\n")
+    write_report(text + "\n", args.out)
 
 
 if __name__ == "__main__":

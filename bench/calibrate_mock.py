@@ -13,8 +13,8 @@
    calibrated mount, the camera's true mount and the mount file the mock started from,
    scored against the mock's truth (seed 0 and held-out seed 100).
 
-    .venv/bin/python bench/calibrate_mock.py [--seeds 4] [--repeat 3]
-    .venv/bin/python bench/calibrate_mock.py --out bench/results/calibrate_mock.md
+    .venv/bin/python -m bench.calibrate_mock [--seeds 4] [--repeat 3]
+    .venv/bin/python -m bench.calibrate_mock --out bench/results/calibrate_mock.md
 """
 
 from __future__ import annotations
@@ -37,6 +37,7 @@ from armstereo.calibration.poses import pose_difference
 from armstereo.calibration.session import mock_true_mount, read_calibration_session
 from armstereo.cli.main import main
 from armstereo.mount import CameraMount
+from bench.harness import capture_and_score, write_report
 
 BOARD = "chessboard:17x12:0.016"
 PROFILES = ("ideal", "realistic")
@@ -165,9 +166,6 @@ def _accuracy_row(profile: str, label: str, seeds: list[int], got) -> str:
 
 def pipeline(folder: Path, seeds: list[int]) -> list[str]:
     """Capture + reconstruct with the calibrated, true and starting mounts (realistic)."""
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    from tests.armstereo.cli.test_calibrate_cmd import capture_and_score
-
     lines = ["## Capture + reconstruction with the calibrated mount", "",
              "realistic profile (desk scene), one pair at 80 mm, StereoSGBM; median |relative "
              "depth error| over the pixels both views see, and median distance of the points "
@@ -202,9 +200,7 @@ def main_() -> None:
         lines += acc
         lines += pipeline(folder, [0, HELD_OUT_OFFSET])
     text = "\n".join(lines)
-    print(text)
-    if a.out:
-        a.out.write_text(text + "\n")
+    write_report(text + "\n", a.out)
 
 
 if __name__ == "__main__":

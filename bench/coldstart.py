@@ -14,7 +14,7 @@ per kernel (inclusive: with the kernels it calls; own: without the nested compil
 The pair is the mock demo's: the default table scene rendered from two poses 0.55 m above the
 table, 80 mm apart along the camera's x axis (640x480, grey).
 
-    .venv/bin/python bench/coldstart.py [--repeats 3] [--max-disparity 80] [--threads N]
+    .venv/bin/python -m bench.coldstart [--repeats 3] [--max-disparity 80] [--threads N]
         [--options '{"subpixel": "none"}'] [--markdown] [--variant NAME=SRC ...]
 """
 
@@ -32,6 +32,8 @@ import time
 from pathlib import Path
 
 import numpy as np
+
+from bench.harness import child_command, child_env
 
 HEIGHT_M = 0.55
 BASELINE_M = 0.08  # the demo's default baseline
@@ -102,11 +104,10 @@ def _per_kernel(buffer) -> list[dict]:
 
 
 def run_child(pair_path: Path, cache: str, args, src: str | None) -> dict:
-    env = dict(os.environ, NUMBA_CACHE_DIR=cache)
-    if src:  # a copy of the source tree (its ``armstereo`` package) to measure instead
-        env["PYTHONPATH"] = os.pathsep.join([src, env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
-    cmd = [sys.executable, __file__, "--child", str(pair_path), "--max-disparity",
-           str(args.max_disparity), "--options", args.options]
+    # src: a copy of the source tree (its ``armstereo`` package) to measure instead
+    env = child_env(dict(os.environ, NUMBA_CACHE_DIR=cache), src)
+    cmd = child_command("bench.coldstart", "--child", str(pair_path), "--max-disparity",
+                        str(args.max_disparity), "--options", args.options)
     if args.threads:
         cmd += ["--threads", str(args.threads)]
     done = subprocess.run(cmd, env=env, capture_output=True, text=True, check=True)

@@ -15,7 +15,7 @@ single-threaded):
   on-disk cache. "cache: look up" outside any kernel is mostly numba's first refresh of its
   registries (it imports ``scipy.linalg`` for its BLAS check), paid once per process.
 
-    .venv/bin/python bench/compile_phases.py [--repeats 3] [--max-disparity 80]
+    .venv/bin/python -m bench.compile_phases [--repeats 3] [--max-disparity 80]
         [--options '{"subpixel": "none"}'] [--top 25]
 
 Each repeat is its own process; the tables give the median over repeats (and the least).
@@ -34,9 +34,9 @@ import time
 from collections import defaultdict
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+import numpy as np
 
-import numpy as np  # noqa: E402
+from bench.harness import child_command, child_env
 
 LLVM_PHASES = {  # (class path, method) -> phase name
     ("numba.core.codegen.CPUCodeLibrary", "_optimize_functions"): "llvm: function passes",
@@ -146,18 +146,18 @@ def main(argv=None) -> int:
     if args.child:
         print(json.dumps(child(args.child, args.max_disparity, json.loads(args.options))))
         return 0
-    from coldstart import render_pair
+    from bench.coldstart import render_pair
 
     runs = []
     with tempfile.TemporaryDirectory(prefix="phases_") as tmp:
         pair = Path(tmp) / "pair.npz"
         render_pair(pair)
         for _ in range(args.repeats):
-            env = dict(os.environ, NUMBA_CACHE_DIR=tempfile.mkdtemp(dir=tmp))
-            out = subprocess.run([sys.executable, __file__, "--child", str(pair),
-                                  "--max-disparity", str(args.max_disparity), "--options",
-                                  args.options], env=env, capture_output=True, text=True,
-                                 check=True)
+            env = child_env(dict(os.environ, NUMBA_CACHE_DIR=tempfile.mkdtemp(dir=tmp)))
+            out = subprocess.run(child_command("bench.compile_phases", "--child", str(pair),
+                                               "--max-disparity", str(args.max_disparity),
+                                               "--options", args.options),
+                                 env=env, capture_output=True, text=True, check=True)
             runs.append(json.loads(out.stdout.strip().splitlines()[-1]))
     med = statistics.median
     print(f"load average {os.getloadavg()[0]:.1f}; {args.repeats} fresh processes; CPU s, "

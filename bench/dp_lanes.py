@@ -3,16 +3,16 @@
 One thread each (numba and OpenCV), process CPU time of the calling thread (steadier than wall
 time on a shared machine), median of ``--repeats`` runs after a warm-up, the peers interleaved
 run by run. The matcher's share is the time spent in
-``armstereo.reconstruct.birchfield.aggregate.match_image_aggregated`` during the call; the
+``armstereo.reconstruct.birchfield.window.aggregate.match_image_aggregated`` during the call; the
 rest is sub-pixel refinement and postprocessing. Pairs: the Middlebury pairs of tests/data,
 with the disparity window of bench/stereo.py.
 
 To compare two source trees, run the script once per tree with it first on the path:
-``PYTHONPATH=TREE .venv/bin/python bench/dp_lanes.py`` (the script reads the pairs from this
+``PYTHONPATH=TREE .venv/bin/python -m bench.dp_lanes`` (the script reads the pairs from this
 checkout). ``--parts`` also splits the matcher into its kernels (BT intervals of the image,
 per-block setup, forward pass, backtrack; medians, so they need not add up).
 
-    .venv/bin/python bench/dp_lanes.py [--repeats 7] [--parts]
+    .venv/bin/python -m bench.dp_lanes [--repeats 7] [--parts]
 """
 
 from __future__ import annotations
@@ -27,11 +27,11 @@ import cv2
 import numba
 
 import armstereo
-import armstereo.reconstruct.birchfield.aggregate as aggregate
+import armstereo.reconstruct.birchfield.window.aggregate as aggregate
 import armstereo.reconstruct.stereo as stereo
+from bench.harness import MIDDLEBURY, MIDDLEBURY_NAMES
 
-MIDDLEBURY = Path(__file__).resolve().parents[1] / "tests" / "data" / "middlebury"
-PAIRS = ("tsukuba", "venus", "teddy", "cones")
+PAIRS = MIDDLEBURY_NAMES
 # the blocks' set-up: numpy for the whole image since the cold-start work, a kernel per block
 # before (the lane_setup column of older results)
 SETUP = "block_setup" if hasattr(aggregate, "block_setup") else "lane_setup"

@@ -19,7 +19,7 @@ matches, timed like ``estimate``.
 Everything runs on one thread (OpenCV and BLAS), and both wall-clock and process CPU time are
 reported: on a shared machine the CPU time is the steadier number.
 
-    .venv/bin/python bench/epipolar.py [--repeat 7] [--markdown bench/results/epipolar.md]
+    .venv/bin/python -m bench.epipolar [--repeat 7] [--markdown bench/results/epipolar.md]
 """
 
 from __future__ import annotations
@@ -30,8 +30,6 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")  # before numpy loads its BLAS
 
 import argparse  # noqa: E402
-import statistics  # noqa: E402
-import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import cv2  # noqa: E402
@@ -46,14 +44,14 @@ from armstereo.epipolar.fundamental import (  # noqa: E402
 from armstereo.epipolar.metrics import sampson_distance  # noqa: E402
 from armstereo.epipolar.selfcheck import check_views  # noqa: E402
 from armstereo.transforms import invert, make_T  # noqa: E402
+from bench.harness import DATA, cpu_and_wall, write_report  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
-TEMPLE = ROOT / "tests" / "data" / "temple_ring"
+TEMPLE = DATA / "temple_ring"
 
 
 def mock_pair():
-    from armstereo.kinematics import ArmModel
     from armstereo.mount import CameraMount
+    from armstereo.robot.arm_model import ArmModel
     from drivers.mock.scene import default_table_scene
     from drivers.mock.start_poses import table_start as mock_start_configuration
 
@@ -85,15 +83,10 @@ def temple_pair():
 def timed(fn, repeat: int, cpu: list | None = None):
     """Median wall time (ms) of ``repeat`` calls and the last result; appends the median CPU
     time (ms) to ``cpu`` when given."""
-    times, cpus, out = [], [], None
-    for _ in range(repeat):
-        t0, c0 = time.perf_counter(), time.process_time()
-        out = fn()
-        times.append(time.perf_counter() - t0)
-        cpus.append(time.process_time() - c0)
+    wall, cpu_s, out = cpu_and_wall(fn, repeat)
     if cpu is not None:
-        cpu.append(statistics.median(cpus) * 1000.0)
-    return statistics.median(times) * 1000.0, out
+        cpu.append(cpu_s * 1000.0)
+    return wall * 1000.0, out
 
 
 def bench_pair(name: str, pair, repeat: int) -> list[str]:
@@ -128,9 +121,7 @@ def main() -> None:
     lines += bench_pair("mock table, 80 mm", mock_pair(), args.repeat)
     lines += bench_pair("temple 0008-0009 (held out)", temple_pair(), args.repeat)
     text = "\n".join(lines)
-    print(text)
-    if args.markdown:
-        args.markdown.write_text(text + "\n")
+    write_report(text + "\n", args.markdown)
 
 
 if __name__ == "__main__":

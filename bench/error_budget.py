@@ -21,7 +21,7 @@ several seeds (each seed draws another arm calibration, camera error and scene t
 and both matchers (Birchfield-Tomasi and StereoSGBM); the table gives the median over the seeds
 and, in brackets, the range.
 
-    .venv/bin/python bench/error_budget.py [--seeds 0 1 2] [--methods birchfield sgbm]
+    .venv/bin/python -m bench.error_budget [--seeds 0 1 2] [--methods birchfield sgbm]
         [--out bench/results/error_budget.md]
 """
 
@@ -37,6 +37,7 @@ from pathlib import Path
 
 from armstereo.apps.demo import DemoOptions, run_demo
 from armstereo.mount import CameraMount
+from bench.harness import write_report
 from drivers.mock.camera import true_mount
 from drivers.mock.profile import REALISTIC, ImageEffects, MockProfile
 
@@ -107,7 +108,7 @@ def main() -> int:
     lines = [
         "# Error budget of the demo scene (realistic mock profile)",
         "",
-        f"`.venv/bin/python bench/error_budget.py --seeds {' '.join(map(str, args.seeds))} "
+        f"`.venv/bin/python -m bench.error_budget --seeds {' '.join(map(str, args.seeds))} "
         f"--methods {' '.join(args.methods)}`: one full demo run per cell and seed (desk scene, "
         "UR5e camera 0.55 m above the table, 80 mm baseline). Cells: median over the seeds "
         "(range in brackets). `depth err` = median |relative depth error| on pixels both views "
@@ -129,8 +130,7 @@ def main() -> int:
         lines.append("")
     lines.append(f"{len(rows()) * len(args.seeds) * len(args.methods)} demo runs, "
                  f"{time.perf_counter() - t_start:.0f} s on a shared 2-core machine.")
-    Path(args.out).write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
+    write_report("\n".join(lines) + "\n", args.out)
     return 0
 
 

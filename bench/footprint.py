@@ -9,7 +9,7 @@ does), then reconstructed with every option set given by ``--variant LABEL=JSON`
 scene's truth. ``--middlebury`` also scores each option set on bench/stereo.py's pairs (bad-2,
 one thread; NaN counts as bad) beside StereoSGBM.
 
-    .venv/bin/python bench/footprint.py [--seeds 0 1 2 3] [--variant 'pc={"photo_check": 12}']
+    .venv/bin/python -m bench.footprint [--seeds 0 1 2 3] [--variant 'pc={"photo_check": 12}']
         [--middlebury] [--out FILE]
 """
 
@@ -25,21 +25,13 @@ from pathlib import Path
 import numba
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-from armstereo.apps.demo import DemoOptions, run_demo  # noqa: E402
-from armstereo.evaluation.scene_score import score_scene  # noqa: E402
-from armstereo.reconstruct.pipeline import reconstruct_pair  # noqa: E402
-from armstereo.recording import Recording  # noqa: E402
-from armstereo.scene import SceneCloud, analyze_scene  # noqa: E402
-from bench.stereo import (  # noqa: E402
-    _disparity,
-    middlebury_cases,
-    scores,
-    synthetic_cases,
-)
-from drivers.mock.scene import default_table_scene  # noqa: E402
+from armstereo.apps.demo import DemoOptions, run_demo
+from armstereo.evaluation.scene_score import score_scene
+from armstereo.reconstruct.pipeline import reconstruct_pair
+from armstereo.recording import Recording
+from armstereo.scene import SceneCloud, analyze_scene
+from bench.harness import case_disparity, case_scores, stereo_cases, write_report
+from drivers.mock.scene import default_table_scene
 
 OBJECTS = ("crate", "book", "puck", "ball", "block", "marble", "can")
 
@@ -91,7 +83,7 @@ def scene_table(results: dict) -> str:
 
 
 def middlebury_table(variants: dict) -> str:
-    cases = middlebury_cases() + synthetic_cases()
+    cases = stereo_cases()
     names = [c.name for c in cases]
     sets = {"StereoSGBM": dict(method="sgbm"), **variants}
     lines = ["| option set | " + " | ".join(names) + " | average | time s |",
@@ -99,11 +91,11 @@ def middlebury_table(variants: dict) -> str:
     for label, options in sets.items():
         bad, total = [], 0.0
         for case in cases:
-            _disparity(case, options, 1)  # warm-up (compilation)
+            case_disparity(case, options, 1)  # warm-up (compilation)
             t0 = time.perf_counter()
-            disp = _disparity(case, options, 1)
+            disp = case_disparity(case, options, 1)
             total += time.perf_counter() - t0
-            bad.append(100 * scores(case, disp)["bad2"])
+            bad.append(100 * case_scores(case, disp)["bad2"])
         lines.append(f"| {label} | " + " | ".join(f"{b:.2f}" for b in bad)
                      + f" | {np.mean(bad):.2f} | {total:.2f} |")
         print(lines[-1], file=sys.stderr)
@@ -138,9 +130,7 @@ def main(argv=None) -> int:
     if args.middlebury:
         parts.append(middlebury_table(variants))
     text = "\n".join(parts)
-    print(text)
-    if args.out:
-        args.out.write_text(text)
+    write_report(text, args.out)
     return 0
 
 

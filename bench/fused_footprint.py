@@ -11,7 +11,7 @@ and the current one (``armstereo.fusion.run``: half the truncation behind, a qua
 tolerance), and the fused cloud analysed and scored against the scene's truth. Accuracy and
 completeness are the mesh's, as ``armstereo fuse`` reports them.
 
-    .venv/bin/python bench/fused_footprint.py [--cases tuning held-out] [--out FILE.md]
+    .venv/bin/python -m bench.fused_footprint [--cases tuning held-out] [--out FILE.md]
 """
 
 from __future__ import annotations
@@ -26,23 +26,21 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-from armstereo import backends  # noqa: E402
-from armstereo.apps.scan import ScanRequest, record_scan  # noqa: E402
-from armstereo.capture import scan_plan  # noqa: E402
-from armstereo.evaluation.scene_score import score_scene  # noqa: E402
-from armstereo.evaluation.scene_truth import SceneTruth  # noqa: E402
-from armstereo.fusion import run  # noqa: E402
-from armstereo.fusion.mesh import extract_mesh, fused_cloud  # noqa: E402
-from armstereo.fusion.tsdf import TsdfVolume  # noqa: E402
-from armstereo.kinematics import ArmModel  # noqa: E402
-from armstereo.mount import CameraMount  # noqa: E402
-from armstereo.recording import Recording  # noqa: E402
-from armstereo.scene.analysis import SceneOptions, analyze_scene  # noqa: E402
-from armstereo.scene.cloud import SceneCloud  # noqa: E402
-from drivers.mock.scene import SCENE_CENTER, default_table_scene  # noqa: E402
+from armstereo import backends
+from armstereo.apps.scan import ScanRequest, record_scan
+from armstereo.capture import scan_plan
+from armstereo.evaluation.scene_score import score_scene
+from armstereo.evaluation.scene_truth import SceneTruth
+from armstereo.fusion import run
+from armstereo.fusion.mesh import extract_mesh, fused_cloud
+from armstereo.fusion.tsdf import TsdfVolume
+from armstereo.mount import CameraMount
+from armstereo.recording import Recording
+from armstereo.robot.arm_model import ArmModel
+from armstereo.scene.analysis import SceneOptions, analyze_scene
+from armstereo.scene.cloud import SceneCloud
+from bench.harness import write_report
+from drivers.mock.scene import SCENE_CENTER, default_table_scene
 
 TARGET = (SCENE_CENTER[0], SCENE_CENTER[1], 0.03)
 CASES = {  # as bench/fusion.py: the defaults were tuned on "tuning"
@@ -120,7 +118,7 @@ def main() -> None:
     ap.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES))
     ap.add_argument("--out", default=None, help="write the Markdown here too")
     args = ap.parse_args()
-    lines = [f"Command: `.venv/bin/python bench/fused_footprint.py {' '.join(sys.argv[1:])}`  ",
+    lines = [f"Command: `.venv/bin/python -m bench.fused_footprint {' '.join(sys.argv[1:])}`  ",
              f"Date: {time.strftime('%Y-%m-%d')}", "",
              "| case | scan plan (quarter-turned pairs) | depth | fusion rule | accuracy mm | "
              "completeness mm | comp. within 2 mm | comp. within 5 mm | raw pairs mm | "
@@ -150,9 +148,7 @@ def main() -> None:
                             f"{r['dh']:+.2f} |")
                         print(lines[-1], file=sys.stderr, flush=True)
     text = "\n".join(lines) + "\n"
-    print(text)
-    if args.out:
-        Path(args.out).write_text(text)
+    write_report(text, args.out)
 
 
 if __name__ == "__main__":

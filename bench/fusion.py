@@ -19,7 +19,7 @@ process against two worker processes, alternating, twice each; ``--open3d PYTHON
 same depth frames with Open3D's VoxelBlockGrid in that interpreter (bench/open3d_peer.py) and
 scores its mesh the same way. Writes Markdown (``--out``).
 
-    .venv/bin/python bench/fusion.py [--held-out] [--variants] [--workers-ab]
+    .venv/bin/python -m bench.fusion [--held-out] [--variants] [--workers-ab]
                                      [--open3d /tmp/o3d/bin/python] [--out FILE.md]
 """
 
@@ -43,9 +43,10 @@ from armstereo.fusion.mesh import Mesh, extract_mesh
 from armstereo.fusion.metrics import reference_surface, score_mesh
 from armstereo.fusion.run import FusionOptions, fuse_recording, reconstruct_pairs
 from armstereo.fusion.tsdf import Roi, TsdfVolume
-from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
 from armstereo.recording import Recording
+from armstereo.robot.arm_model import ArmModel
+from bench.harness import timed, write_report
 from drivers.mock.scene import SCENE_CENTER, default_table_scene
 
 TARGET = (SCENE_CENTER[0], SCENE_CENTER[1], 0.03)
@@ -62,15 +63,17 @@ VOXEL_M = 0.002
 def scan(path: Path, case: dict) -> tuple[float, int]:
     """Plan and record the case's scan with what ``armstereo scan`` runs; returns (seconds,
     pairs)."""
-    t0 = time.perf_counter()
-    model = ArmModel.load("ur5e", mount=CameraMount.load(None))
-    request = ScanRequest(target=TARGET, views=case["views"], radius=case["radius"],
-                          elevation_deg=case["elevation_deg"], baseline=BASELINE_M)
-    camera = backends.camera_config("mock", noise=case["noise"], seed=1,
-                                    scene=default_table_scene(case["scene_seed"]))
-    outcome = record_scan(path, request, model, arm_config=backends.arm_config("mock", seed=1),
-                          camera_config=camera, progress=None)
-    return time.perf_counter() - t0, len(outcome.result.pairs)
+    def record():
+        model = ArmModel.load("ur5e", mount=CameraMount.load(None))
+        request = ScanRequest(target=TARGET, views=case["views"], radius=case["radius"],
+                              elevation_deg=case["elevation_deg"], baseline=BASELINE_M)
+        camera = backends.camera_config("mock", noise=case["noise"], seed=1,
+                                        scene=default_table_scene(case["scene_seed"]))
+        return record_scan(path, request, model, arm_config=backends.arm_config("mock", seed=1),
+                           camera_config=camera, progress=None)
+
+    outcome, seconds = timed(record)
+    return seconds, len(outcome.result.pairs)
 
 
 def _acc(report: dict) -> dict:
@@ -87,9 +90,8 @@ def run_case(name: str, case: dict, tmp: Path, lines: list[str]) -> dict:
     c0 = time.process_time()
     scan_s, pairs = scan(path, case)
     print(f"{name}: scan {scan_s:.1f} s ({pairs} pairs)", file=sys.stderr)
-    t0 = time.perf_counter()
-    report = fuse_recording(path, tmp / f"{name}_out", FusionOptions(voxel=VOXEL_M))
-    fuse_s = time.perf_counter() - t0
+    report, fuse_s = timed(fuse_recording, path, tmp / f"{name}_out",
+                           FusionOptions(voxel=VOXEL_M))
     cpu_s = time.process_time() - c0  # all threads of this process: load-independent
     truth = fuse_recording(path, tmp / f"{name}_truth",
                            FusionOptions(voxel=VOXEL_M, depth_source="truth", workers=1))
@@ -238,7 +240,7 @@ def main() -> None:
     ap.add_argument("--out", default=None, help="write the Markdown here too")
     args = ap.parse_args()
     lines = ["# Fusion benchmark: 12-view mock scan, 2 mm voxels", "",
-             f"Command: `.venv/bin/python bench/fusion.py {' '.join(sys.argv[1:])}`  ",
+             f"Command: `.venv/bin/python -m bench.fusion {' '.join(sys.argv[1:])}`  ",
              f"Date: {time.strftime('%Y-%m-%d')}; 2 cores shared with other work (timings "
              "rough: compare rows of one run).", ""]
     with tempfile.TemporaryDirectory() as tmp:
@@ -256,9 +258,7 @@ def main() -> None:
             lines += ["### Worker processes for reconstruction (tuning scan)", ""]
             workers_ab(first["path"], lines)
     text = "\n".join(lines) + "\n"
-    print(text)
-    if args.out:
-        Path(args.out).write_text(text)
+    write_report(text, args.out)
 
 
 if __name__ == "__main__":

@@ -1,11 +1,11 @@
 """Mutation testing of the safety- and accuracy-critical modules with cosmic-ray.
 
-    python bench/mutation.py                       # every target, then the report
-    python bench/mutation.py --target plan run     # some targets only (the report keeps the rest)
-    python bench/mutation.py --sample 40 --seed 1  # at most 40 random mutants per accuracy target
-    python bench/mutation.py --survivors           # re-test only the kept survivors (new tests)
-    python bench/mutation.py --report-only         # rewrite the report (e.g. new explanations)
-    python bench/mutation.py --list                # the targets, their functions and tests
+    python -m bench.mutation                       # every target, then the report
+    python -m bench.mutation --target plan run     # some targets only (the report keeps the rest)
+    python -m bench.mutation --sample 40 --seed 1  # at most 40 random mutants per accuracy target
+    python -m bench.mutation --survivors           # re-test only the kept survivors (new tests)
+    python -m bench.mutation --report-only         # rewrite the report (e.g. new explanations)
+    python -m bench.mutation --list                # the targets, their functions and tests
 
 Each mutant is a one-line change (a comparison, an arithmetic or boolean operator, a number,
 a constant, a loop that never runs, an exception type); the target's own fast test subset runs
@@ -41,7 +41,8 @@ import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+from bench.harness import ROOT
+
 REPORT = ROOT / "bench" / "results" / "mutation.md"
 RESULTS = ROOT / "bench" / "results" / "mutation"
 EQUIVALENT = ROOT / "bench" / "mutation_equivalent.toml"
@@ -107,9 +108,21 @@ TARGETS = [
            ("tests/armstereo/reconstruct/test_stereo_properties.py",
             "tests/armstereo/reconstruct/test_stereo.py",
             "tests/armstereo/reconstruct/test_stereo_robust.py"),
-           ("birchfield", "_match", "compute_disparity", "_grey", "_check_options", "_prepare",
-            "_check_exact_width", "_check_range", "_reject_invalid_partners",
-            "_clip_to_window")),
+           ("birchfield", "_match", "compute_disparity", "disparity", "_kernel_params",
+            "_check_exact_width")),
+    Target("stereo-inputs", "armstereo/reconstruct/stereo_inputs.py",
+           ("tests/armstereo/reconstruct/test_stereo.py",
+            "tests/armstereo/reconstruct/test_stereo_properties.py"),
+           ("grey", "prepare", "_checked_image", "check_range")),
+    Target("stereo-options", "armstereo/reconstruct/stereo_options.py",
+           ("tests/armstereo/reconstruct/test_stereo_options.py",
+            "tests/armstereo/reconstruct/test_stereo.py"),
+           ("__post_init__", "_check_rejections", "_check_prefilter", "_window", "_smoothing",
+            "options_for", "with_keywords")),
+    Target("rejection", "armstereo/reconstruct/rejection.py",
+           ("tests/armstereo/reconstruct/test_stereo_robust.py",
+            "tests/armstereo/reconstruct/test_stereo_properties.py"),
+           ("reject_invalid_partners", "single_runs", "clip_to_window")),
 ]
 
 
@@ -354,7 +367,7 @@ def _write_report(path: Path) -> None:
     results = [json.loads((RESULTS / f"{name}.json").read_text()) for name in order
                if (RESULTS / f"{name}.json").exists()]
     lines = ["# Mutation testing", "",
-             "Made by `python bench/mutation.py` (cosmic-ray; targets, the tests each one runs "
+             "Made by `python -m bench.mutation` (cosmic-ray; targets, the tests each one runs "
              "and the operators left out are in bench/mutation.py; equivalent mutants are "
              "explained in bench/mutation_equivalent.toml). Safety targets run every mutant; "
              "accuracy targets may run a seeded sample (column 'sample'). Mutants on log "

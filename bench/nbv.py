@@ -9,7 +9,7 @@ chooses from, for N <= 8), inside a fixed region of interest around the scene, s
 that leaves a side unseen is charged for it (``fuse``'s own report measures each scan against
 what its own views see).
 
-    .venv/bin/python bench/nbv.py [--budgets 4 6] [--seed 1] [--out FILE.md]
+    .venv/bin/python -m bench.nbv [--budgets 4 6] [--seed 1] [--out FILE.md]
 """
 
 from __future__ import annotations
@@ -29,9 +29,10 @@ from armstereo.fusion.mesh_ply import read_mesh_ply
 from armstereo.fusion.metrics import reference_surface, score_mesh
 from armstereo.fusion.run import FusionOptions, fuse_recording
 from armstereo.fusion.tsdf import Roi
-from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
 from armstereo.recording import Recording
+from armstereo.robot.arm_model import ArmModel
+from bench.harness import timed, write_report
 
 TARGET = (-0.45, -0.13, 0.03)
 ROI = Roi((-0.65, -0.33, -0.012), (-0.25, 0.07, 0.17))  # the scene's objects and table around
@@ -42,11 +43,10 @@ def scan(path: Path, views: str, seed: int) -> tuple[float, object]:
     model = ArmModel.load("ur5e", mount=CameraMount.load(None))
     request = ScanRequest(target=TARGET, views=views, radius=0.45, elevation_deg=55.0,
                           baseline=0.06)
-    t0 = time.perf_counter()
-    outcome = record_scan(path, request, model, arm_config=backends.arm_config("mock", seed=seed),
-                          camera_config=backends.camera_config("mock", noise=1.0, seed=seed),
-                          progress=None)
-    return time.perf_counter() - t0, outcome
+    outcome, seconds = timed(
+        record_scan, path, request, model, arm_config=backends.arm_config("mock", seed=seed),
+        camera_config=backends.camera_config("mock", noise=1.0, seed=seed), progress=None)
+    return seconds, outcome
 
 
 def score(path: Path, out: Path, depth: str, truth: SceneTruth, reference) -> dict:
@@ -65,7 +65,7 @@ def main() -> None:
     ap.add_argument("--out", default=None)
     args = ap.parse_args()
     lines = ["# Next-best view vs fixed layouts (mock table scene)", "",
-             f"Command: `.venv/bin/python bench/nbv.py {' '.join(sys.argv[1:])}`  ",
+             f"Command: `.venv/bin/python -m bench.nbv {' '.join(sys.argv[1:])}`  ",
              f"Date: {time.strftime('%Y-%m-%d')}; reference surface: the true surface visible "
              f"from {DENSE} (the auto candidates), inside {ROI}.", "",
              "| layout | pairs | viewpoints | scan s | exact depth: comp. mm | within 2 mm | "
@@ -92,9 +92,7 @@ def main() -> None:
                     f"{stereo['acc']:.3f} | {stereo['comp']:.2f} | {stereo['c5'] * 100:.1f} % | "
                     f"{stereo['cov'] * 100:.1f} % |")
     text = "\n".join(lines) + "\n"
-    print(text)
-    if args.out:
-        Path(args.out).write_text(text)
+    write_report(text, args.out)
 
 
 if __name__ == "__main__":

@@ -4,7 +4,7 @@ Runs in an interpreter that has open3d (kept out of the project's environment: ~
 system libusb; see docs/fusion.md)::
 
     python -m venv /tmp/o3d && /tmp/o3d/bin/pip install open3d-cpu   # + apt libusb-1.0-0
-    /tmp/o3d/bin/python bench/open3d_peer.py FRAMES.npz OUT.npz [--no-half-pixel]
+    /tmp/o3d/bin/python -m bench.open3d_peer FRAMES.npz OUT.npz [--no-half-pixel]
 
 FRAMES.npz (written by bench/fusion.py): ``depth_<k>`` (H, W) float32 m (NaN = none),
 ``K_<k>`` 3x3, ``T_<k>`` 4x4 T_base_camera, ``count``, ``voxel``, ``trunc``, ``roi`` (6,).

@@ -6,7 +6,7 @@ recording's pair ``--repeat`` times (a fresh ``Recording.open`` each time so PNG
 counted) and prints the median of each stage: decode, rectify, match, triangulate, write (PLY).
 The first run also compiles the matcher (numba cache) and is reported separately.
 
-    .venv/bin/python bench/pipeline.py [--repeat 7] [--method birchfield|sgbm] [--baseline 0.06]
+    .venv/bin/python -m bench.pipeline [--repeat 7] [--method birchfield|sgbm] [--baseline 0.06]
 """
 
 from __future__ import annotations
@@ -16,7 +16,6 @@ import math
 import statistics
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
@@ -28,6 +27,7 @@ from armstereo.reconstruct.outputs import write_outputs
 from armstereo.reconstruct.pipeline import reconstruct_pair
 from armstereo.recording import Recording, RecordingWriter
 from armstereo.transforms import invert, make_T, rot_x, rot_z
+from bench.harness import timed
 from drivers.mock.scene import SCENE_CENTER, default_table_scene
 
 STAGES = ("decode", "rectify", "match", "triangulate", "write")
@@ -53,14 +53,11 @@ def make_recording(path: Path, baseline: float, direction: str) -> None:
 
 
 def run_once(rec_path: Path, out: Path, method: str) -> tuple[dict[str, float], object]:
-    t0 = time.perf_counter()
-    pair = Recording.open(rec_path)[0]
-    t_open = time.perf_counter() - t0
+    pair, t_open = timed(lambda: Recording.open(rec_path)[0])
     recon = reconstruct_pair(pair, method=method)
     recon.timings_s["decode"] += t_open  # reading the file is part of getting the images
-    t0 = time.perf_counter()
-    write_ply(out / "bench.ply", recon.points_base, recon.colors_bgr)
-    recon.timings_s["write"] = time.perf_counter() - t0
+    _, recon.timings_s["write"] = timed(write_ply, out / "bench.ply", recon.points_base,
+                                        recon.colors_bgr)
     return recon.timings_s, recon
 
 

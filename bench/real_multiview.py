@@ -25,7 +25,7 @@ to SGBM's multiple of 16) and run at one thread, interleaved. Scores per pair:
 Pairs whose two views both lie in the held-out halves (temple views 9-16, dino views 9-16) and
 cross-pair comparisons whose three views all do were not used for tuning; they are reported
 separately. Run:
-``.venv/bin/python bench/real_multiview.py --data DIR [--repeats 3] [--out FILE] [--variant
+``.venv/bin/python -m bench.real_multiview --data DIR [--repeats 3] [--out FILE] [--variant
 LABEL=JSON ...]``.
 """
 
@@ -34,7 +34,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import statistics
 import sys
 import time
 from dataclasses import dataclass
@@ -44,17 +43,16 @@ import cv2
 import numba
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-from armstereo.camera_model import Intrinsics  # noqa: E402
-from armstereo.reconstruct.rectify import rectified_geometry, rectify_pair  # noqa: E402
-from armstereo.reconstruct.stereo import compute_disparity  # noqa: E402
-from armstereo.reconstruct.triangulate import point_cloud  # noqa: E402
-from armstereo.transforms import make_T  # noqa: E402
+from armstereo.camera_model import Intrinsics
+from armstereo.reconstruct.rectify import rectified_geometry, rectify_pair
+from armstereo.reconstruct.stereo import compute_disparity
+from armstereo.reconstruct.triangulate import point_cloud
+from armstereo.transforms import make_T
+from bench.harness import RESULTS as BENCH_RESULTS
+from bench.harness import interleaved, write_report
 
 DATA_ENV = "ARMSTEREO_MVS_DATA"
-RESULTS = ROOT / "bench" / "results" / "real_multiview.md"
+RESULTS = BENCH_RESULTS / "real_multiview.md"
 
 # Tight bounding boxes (world frame, m) from the data sets' original READMEs.
 RINGS = {
@@ -247,14 +245,12 @@ def run_pair(pair: Pair, peers: dict[str, dict], repeats: int) -> dict:
     rect, nmax = rectify(pair)
     ref = sparse_reference(pair, rect)
     pix = box_pixels(rect, pair.box)
-    times = {name: [] for name in peers}
-    disp = {}
-    for i in range(repeats + 1):
-        for name, options in peers.items():
-            t0 = time.perf_counter()
-            disp[name] = match(rect, nmax, options)
-            if i or not repeats:
-                times[name].append(time.perf_counter() - t0)
+    # one warm-up round, then ``repeats`` timed rounds (or one timed round when 0)
+    got = interleaved({name: (lambda o=options: match(rect, nmax, o))
+                       for name, options in peers.items()},
+                      max(repeats, 1), warmup=1 if repeats else 0)
+    times = {name: t for name, (t, _) in got.items()}
+    disp = {name: d for name, (_, d) in got.items()}
     out = dict(size=rect.geometry.size, window=nmax, clouds={}, scores={})
     for name in peers:
         pts, _ = point_cloud(disp[name], rect.geometry, rect.left, mask=rect.left_mask)
@@ -263,7 +259,7 @@ def run_pair(pair: Pair, peers: dict[str, dict], repeats: int) -> dict:
         out["scores"][name] = dict(
             points=len(pts), outside=float(1 - inside.mean()) if len(pts) else np.nan,
             density=float(inside.sum() / max(1, pix.sum())),
-            time=statistics.median(times[name]), **sparse_scores(disp[name], ref))
+            time=times[name], **sparse_scores(disp[name], ref))
         out.setdefault("disp", {})[name] = disp[name]
     out["rect"] = rect
     return out
@@ -399,7 +395,7 @@ def main(argv: list[str] | None = None) -> int:
     # the data folder is the reader's own (the photographs are not in the repository)
     shown = ["DIR" if i and given[i - 1] == "--data" else a for i, a in enumerate(given)]
     parts = [f"# Real multi-view photographs: Birchfield-Tomasi vs StereoSGBM\n\n"
-             f"Command: `.venv/bin/python bench/real_multiview.py {' '.join(shown)}`  \n"
+             f"Command: `.venv/bin/python -m bench.real_multiview {' '.join(shown)}`  \n"
              f"Date: {time.strftime('%Y-%m-%d')}; one thread each. Variants: "
              + "; ".join(f"`{k}` = {json.dumps(v)}" for k, v in peers.items()) + "\n",
              ]
@@ -410,10 +406,7 @@ def main(argv: list[str] | None = None) -> int:
                      + summarise(results, pairs, crosses, peers, True))
     parts.append(NOTES)
     text = "\n".join(parts)
-    if args.out:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(text)
-    print(text)
+    write_report(text, args.out)
     return 0
 
 

@@ -5,7 +5,7 @@ float32 ground-truth depth, /tf, joint states, the view event and a pair event, 
 Images are textured like a real scene (multi-scale texture, shapes, sensor noise), panning a
 little between views, so the image codecs do realistic work.
 
-    .venv/bin/python bench/record.py [--views 60] [--quick]
+    .venv/bin/python -m bench.record [--views 60] [--quick]
 
 Prints one row per setting: views/s (median of --repeat runs), MB per view.
 """
@@ -16,7 +16,6 @@ import argparse
 import os
 import statistics
 import tempfile
-import time
 from dataclasses import dataclass
 
 import cv2
@@ -25,10 +24,11 @@ from mcap.writer import CompressionType
 
 from armstereo.camera_model import Intrinsics
 from armstereo.devices import Frame
-from armstereo.kinematics import JOINT_NAMES
 from armstereo.recording import RecordingWriter
 from armstereo.recording.writer import JPEG_QUALITY, PNG_PARAMS
+from armstereo.robot.arm_model import JOINT_NAMES
 from armstereo.transforms import make_T, rot_x
+from bench.harness import timed
 
 WIDTH, HEIGHT = 640, 480
 
@@ -113,20 +113,22 @@ def run(setting: Setting, views, directory: str) -> tuple[float, float]:
     intr = Intrinsics(WIDTH, HEIGHT, [[600, 0, 319.5], [0, 600, 239.5], [0, 0, 1]])
     T_flange_camera = make_T(np.eye(3), [0, -0.07, 0.04])
     path = os.path.join(directory, "bench.mcap")
-    start = time.perf_counter()
-    with RecordingWriter(path, metadata={"bench": "1"}, image_format=setting.image_format,
-                         png_params=PNG_SETTINGS[setting.png], chunk_compression=setting.chunk,
-                         fsync=setting.fsync) as w:
-        w.write_calibration(intr, views[0][0].timestamp_ns - 1)
-        for k, (frame, q) in enumerate(views):
-            if not setting.depth:
-                frame = Frame(frame.image, frame.timestamp_ns)
-            T_base_flange = make_T(rot_x(np.pi), [0.4 + 0.001 * k, 0.1, 0.5])
-            w.write_view(k, frame, q, JOINT_NAMES, T_base_flange, T_flange_camera,
-                         settle_s=0.5)
-            if k:
-                w.write_pair(k - 1, k - 1, k, 0.1, 0.1, "x")
-    elapsed = time.perf_counter() - start
+
+    def write() -> None:
+        with RecordingWriter(path, metadata={"bench": "1"}, image_format=setting.image_format,
+                             png_params=PNG_SETTINGS[setting.png],
+                             chunk_compression=setting.chunk, fsync=setting.fsync) as w:
+            w.write_calibration(intr, views[0][0].timestamp_ns - 1)
+            for k, (frame, q) in enumerate(views):
+                if not setting.depth:
+                    frame = Frame(frame.image, frame.timestamp_ns)
+                T_base_flange = make_T(rot_x(np.pi), [0.4 + 0.001 * k, 0.1, 0.5])
+                w.write_view(k, frame, q, JOINT_NAMES, T_base_flange, T_flange_camera,
+                             settle_s=0.5)
+                if k:
+                    w.write_pair(k - 1, k - 1, k, 0.1, 0.1, "x")
+
+    _, elapsed = timed(write)
     return len(views) / elapsed, os.path.getsize(path) / len(views) / 1e6
 
 

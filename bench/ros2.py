@@ -1,6 +1,6 @@
 """Benchmark: the two pure-Python ROS 2 libraries side by side, and the bridge's own steps.
 
-    .venv/bin/python bench/ros2.py [--repeats 5] [--quick]
+    .venv/bin/python -m bench.ros2 [--repeats 5] [--quick] [--out bench/results/ros2.md]
 
 Side by side in one process, alternating A B A B per repeat (medians quoted):
 
@@ -33,16 +33,15 @@ from armstereo.ros2 import types as R
 from armstereo.ros2.export import export_recording
 from armstereo.ros2.importer import ImportOptions, import_bag
 from armstereo.transforms import make_T, rot_x, rot_z
+from bench.harness import command_line, machine_note, timed, write_report
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE = ROOT / "recordings" / "sample.mcap"
 
 
 def _timed(fn, n: int) -> float:
-    t0 = time.perf_counter()
-    for _ in range(n):
-        fn()
-    return (time.perf_counter() - t0) / n
+    """Mean seconds per call over ``n`` calls."""
+    return timed(lambda: [fn() for _ in range(n)])[1] / n
 
 
 def _as_dict(obj):
@@ -147,22 +146,25 @@ def bridge_rows(repeats: int) -> list[tuple]:
     return rows
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--quick", action="store_true", help="fewer messages, a small mesh")
-    args = ap.parse_args()
-    print("| message | rosbags encode | mcap-ros2 encode | rosbags decode | mcap-ros2 decode |")
-    print("|---|---|---|---|---|")
+    ap.add_argument("--out", type=Path, default=None, help="also write the tables here")
+    args = ap.parse_args(argv)
+    lines = ["| message | rosbags encode | mcap-ros2 encode | rosbags decode | mcap-ros2 decode |",
+             "|---|---|---|---|---|"]
     for label, *t in codec_rows(args.repeats, args.quick):
-        print(f"| {label} | " + " | ".join(f"{v * 1e6:.0f} us" for v in t) + " |")
-    print("\n| mesh marker | numpy CDR (armstereo) | rosbags objects | mcap-ros2 dicts |")
-    print("|---|---|---|---|")
+        lines.append(f"| {label} | " + " | ".join(f"{v * 1e6:.0f} us" for v in t) + " |")
+    lines += ["", "| mesh marker | numpy CDR (armstereo) | rosbags objects | mcap-ros2 dicts |",
+              "|---|---|---|---|"]
     for label, *t in mesh_rows(args.repeats, args.quick):
-        print(f"| {label} | " + " | ".join(f"{v:.3f} s" for v in t) + " |")
-    print("\n| bridge step | median wall |\n|---|---|")
+        lines.append(f"| {label} | " + " | ".join(f"{v:.3f} s" for v in t) + " |")
+    lines += ["", "| bridge step | median wall |", "|---|---|"]
     for label, t in bridge_rows(args.repeats):
-        print(f"| {label} | {t:.3f} s |")
+        lines.append(f"| {label} | {t:.3f} s |")
+    lines += ["", f"`{command_line('bench.ros2', argv)}`; {machine_note()}"]
+    write_report("\n".join(lines) + "\n", args.out)
 
 
 if __name__ == "__main__":

@@ -10,7 +10,7 @@ above the plane with :func:`armstereo.scene.cluster.voxel_clusters` and with
 times, cluster counts and agreement (adjusted Rand index on the points both call non-noise).
 Wall times on a shared machine swing with its load; the process's CPU time swings less.
 
-    .venv/bin/python bench/scene.py [--points 300000] [--repeat 5] [--cloud FILE] [--markdown]
+    .venv/bin/python -m bench.scene [--points 300000] [--repeat 5] [--cloud FILE] [--markdown]
 """
 
 from __future__ import annotations
@@ -20,16 +20,14 @@ import math
 import statistics
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests.* (synthetic scans)
-
-from armstereo.scene import SceneCloud, SceneOptions, analyze_scene, load_cloud  # noqa: E402
-from armstereo.scene.cluster import NOISE, voxel_clusters  # noqa: E402
-from drivers.mock.scene import SCENE_CENTER, default_table_scene  # noqa: E402
-from tests.armstereo.scene.synth import scan  # noqa: E402
+from armstereo.scene import SceneCloud, SceneOptions, analyze_scene, load_cloud
+from armstereo.scene.cluster import NOISE, voxel_clusters
+from armstereo.scene.synthetic import scan
+from bench.harness import best_time
+from drivers.mock.scene import SCENE_CENTER, default_table_scene
 
 EXTENT = (0.25, 0.22)  # half extents of the scanned table area around the scene centre (m)
 
@@ -76,13 +74,13 @@ def compare_clustering(cloud: SceneCloud, analysis, repeat: int) -> list[tuple]:
     pts = analysis.plane.to_plane(cloud.points[(h > opts.plane_threshold_m)
                                                & (h <= opts.max_height_m)])
     rows = []
-    t_ours = _best(lambda: voxel_clusters(pts, opts.cluster_voxel_m,
+    t_ours = best_time(lambda: voxel_clusters(pts, opts.cluster_voxel_m,
                                           min_voxel_points=opts.min_voxel_points,
                                           min_cluster_points=opts.min_points), repeat)
     ours = voxel_clusters(pts, opts.cluster_voxel_m, min_voxel_points=opts.min_voxel_points,
                           min_cluster_points=opts.min_points)
     dbscan = DBSCAN(eps=opts.cluster_voxel_m, min_samples=10, n_jobs=1)
-    t_ref = _best(lambda: dbscan.fit_predict(pts), max(1, repeat // 2))
+    t_ref = best_time(lambda: dbscan.fit_predict(pts), max(1, repeat // 2))
     ref = dbscan.fit_predict(pts)
     ref = _drop_small(ref, opts.min_points)
     both = (ours != NOISE) & (ref != NOISE)
@@ -105,13 +103,6 @@ def _count(labels: np.ndarray) -> int:
     return len(set(labels.tolist()) - {NOISE})
 
 
-def _best(fn, repeat: int) -> float:
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return min(times)
 
 
 def main() -> int:

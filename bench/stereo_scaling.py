@@ -10,61 +10,44 @@ calls of a round alike). Threads are set with ``numba.set_num_threads`` and
 ``cv2.setNumThreads``, as for a user who calls ``birchfield()`` without ``threads``. Every
 pair's maps at one and at two threads are checked to be identical.
 
-Run: ``.venv/bin/python bench/stereo_scaling.py [--rounds 15] [--out
+Run: ``.venv/bin/python -m bench.stereo_scaling [--rounds 15] [--out
 bench/results/stereo_scaling.md]``.
 """
 
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import statistics
 import sys
 import time
 from pathlib import Path
 
-import cv2
-import numba
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+from armstereo.reconstruct.stereo import birchfield, sgbm
+from bench.harness import (
+    RESULTS,
+    command_line,
+    machine_note,
+    set_threads,
+    stereo_cases,
+    timed,
+    write_report,
+)
 
-from armstereo.reconstruct.stereo import birchfield, sgbm  # noqa: E402
-
-RESULTS = ROOT / "bench" / "results" / "stereo_scaling.md"
+RESULTS = RESULTS / "stereo_scaling.md"
 TILES = (2, 3)  # Cones tiled n x n
 
 
-def _bench_module():
-    """bench/stereo.py of this checkout (its cases and machine note)."""
-    spec = importlib.util.spec_from_file_location("bench_stereo", ROOT / "bench" / "stereo.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # its dataclasses look their module up
-    spec.loader.exec_module(module)
-    return module
-
-
-def cases(bench) -> list[tuple[str, np.ndarray, np.ndarray, int, int]]:
+def cases() -> list[tuple[str, np.ndarray, np.ndarray, int, int]]:
     """``(name, left, right, min_disparity, max_disparity)`` of every pair."""
     out = [(c.name, c.left, c.right, c.min_disparity, c.max_disparity)
-           for c in bench.middlebury_cases() + bench.synthetic_cases()]
+           for c in stereo_cases()]
     cones = next(c for c in out if c[0].startswith("cones"))
     for n in TILES:
         left, right = (np.ascontiguousarray(np.tile(img, (n, n, 1))) for img in cones[1:3])
         out.append((f"cones tiled {n}x{n}", left, right, *cones[3:]))
     return out
-
-
-def set_threads(n: int) -> None:
-    numba.set_num_threads(n)
-    cv2.setNumThreads(n)
-
-
-def timed(func, *args, **kwargs) -> float:
-    t0 = time.perf_counter()
-    func(*args, **kwargs)
-    return time.perf_counter() - t0
 
 
 def cpu_jiffies() -> tuple[int, int] | None:
@@ -96,7 +79,7 @@ def measure(case, rounds: int) -> dict:
         for i in range(rounds):
             for n in ((1, 2) if i % 2 == 0 else (2, 1)):
                 set_threads(n)
-                times[n].append(timed(func, left, right, dmax, min_disparity=dmin))
+                times[n].append(timed(func, left, right, dmax, min_disparity=dmin)[1])
         res[peer] = dict(one=statistics.median(times[1]), two=statistics.median(times[2]),
                          speedup=statistics.median(a / b for a, b in zip(times[1], times[2],
                                                                          strict=True)))
@@ -125,21 +108,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--rounds", type=int, default=15, help="rounds per pair (median)")
     parser.add_argument("--out", type=Path, default=RESULTS, help="markdown file to write")
     args = parser.parse_args(argv)
-    bench = _bench_module()
     rows = []
-    for case in cases(bench):
+    for case in cases():
         rounds = args.rounds if case[1].size < 3e6 else max(5, args.rounds // 3)
         rows.append((case[0], measure(case, rounds)))
         r = rows[-1][1]
         print(f"{case[0]}: birchfield {r['birchfield']['speedup']:.2f}x, "
               f"SGBM {r['sgbm']['speedup']:.2f}x", file=sys.stderr)
-    text = (f"# birchfield() from one thread to two\n\nCommand: `.venv/bin/python "
-            f"bench/stereo_scaling.py {' '.join(argv or sys.argv[1:])}`  \n"
-            f"Date: {time.strftime('%Y-%m-%d')}; {bench.machine_note()}\n\n"
+    text = (f"# birchfield() from one thread to two\n\nCommand: "
+            f"`{command_line('bench.stereo_scaling', argv)}`  \n"
+            f"Date: {time.strftime('%Y-%m-%d')}; {machine_note()}\n\n"
             f"{table(rows)}\n{NOTES}")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(text)
-    print(text)
+    write_report(text, args.out)
     return 0
 
 

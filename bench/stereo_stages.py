@@ -1,7 +1,7 @@
 """Benchmark: where the time of ``birchfield()`` goes, stage by stage, beside StereoSGBM.
 
 Each stage is one named function of :mod:`armstereo.reconstruct.stereo` (or of the modules
-it calls: ``birchfield.aggregate``, ``consensus``, ``speckles``): the worker wraps every one
+it calls: ``birchfield.window.aggregate``, ``consensus``, ``speckles``): the worker wraps every one
 it finds with a timer and reports its *own* time (without the stages it calls), the median
 over the runs; "rest of birchfield()" is what runs in ``birchfield()``'s own body. A stage a
 variant does not have (renamed, or inline there) shows as "-" and its time is in the row of
@@ -17,7 +17,7 @@ has them; a few stages take another path then). ``--variant NAME=SRC`` measures 
 variants run in turn in fresh processes, ``--rounds`` times, so that each sees the same
 machine load. ``--cprofile`` prints cProfile's top functions of the call on cones instead.
 
-Run: ``.venv/bin/python bench/stereo_stages.py [--repeats 9] [--rounds 2] [--masked]
+Run: ``.venv/bin/python -m bench.stereo_stages [--repeats 9] [--rounds 2] [--masked]
 [--variant before=DIR --variant after=.] [--options '{"lr_check": true}'] [--case cones]
 [--out bench/results/stereo_stages.md]``.
 """
@@ -35,8 +35,9 @@ import sys
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-RESULTS = ROOT / "bench" / "results" / "stereo_stages.md"
+from bench.harness import RESULTS, ROOT, child_command, child_env, stereo_cases, write_report
+
+RESULTS = RESULTS / "stereo_stages.md"
 
 # (module, function, stage label), in the order the default path runs them
 STAGES = [
@@ -84,6 +85,27 @@ STAGES = [
     ("stereo", "_first_pass", "rest of birchfield()"),
     ("stereo", "_second_pass", "rest of birchfield()"),
     ("stereo", "birchfield", "rest of birchfield()"),
+    # the same stages after the split of stereo.py by stage (issue 23)
+    ("stereo_inputs", "prepare", "input checks"),
+    ("stereo_inputs", "grey", "grey conversion"),
+    ("stereo_inputs", "texture_strength", "texture maps"),
+    ("stereo_inputs", "rewarded", "texture maps"),
+    ("stereo_inputs", "highpass", "highpass prefilter"),
+    ("stereo_inputs", "with_edges", "edge prefilter"),
+    ("subpixel", "gradient_step", "sub-pixel: fast"),
+    ("subpixel", "refine_gradient", "sub-pixel: gradient"),
+    ("subpixel", "refine_parabola", "sub-pixel: parabola"),
+    ("rejection", "_median", "median"),
+    ("rejection", "unsupported", "unsupported flat pixels"),
+    ("rejection", "hidden_by_nearer", "hidden by nearer"),
+    ("rejection", "_flat_and_hidden", "unsupported flat + hidden (one kernel)"),
+    ("rejection", "_rows", "unsupported flat + hidden (one kernel)"),
+    ("rejection", "photo_inconsistent", "photo check"),
+    ("rejection", "add_rejections", "reject (NaN bookkeeping)"),
+    ("rejection", "clip_to_window", "clip to window"),
+    ("rejection", "reject_invalid_partners", "invalid partners"),
+    ("rejection", "masked_map", "rest of birchfield()"),
+    ("rejection", "_first_pass", "rest of birchfield()"),
 ]
 DP = "DP kernels"
 SUBPIXEL = "sub-pixel: fast"
@@ -120,12 +142,8 @@ class StageTimer:
 
 
 def _bench_cases():
-    """The pairs of bench/stereo.py (loaded from this checkout's copy of that script)."""
-    spec = importlib.util.spec_from_file_location("bench_stereo", ROOT / "bench" / "stereo.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # its dataclasses look their module up
-    spec.loader.exec_module(module)
-    return module.middlebury_cases() + module.synthetic_cases()
+    """The pairs of bench/stereo.py."""
+    return stereo_cases()
 
 
 def rectification_masks(shape: tuple[int, ...]) -> tuple:
@@ -146,14 +164,15 @@ def worker(repeats: int, options: dict, only: list[str] | None, masked: bool) ->
     import numba
 
     from armstereo.reconstruct import stereo  # from the tree on PYTHONPATH: import it first
-    from armstereo.reconstruct.birchfield import aggregate
+    from armstereo.reconstruct.birchfield.window import aggregate
 
     cases = [c for c in _bench_cases() if not only or c.name in only]
     numba.set_num_threads(1)
     cv2.setNumThreads(1)
     timer = StageTimer()
     modules = {"stereo": stereo, "aggregate": aggregate}
-    for part in ("consensus", "speckles"):  # split out of stereo.py: older trees lack them
+    # split out of stereo.py: older trees lack them
+    for part in ("consensus", "speckles", "stereo_inputs", "rejection", "subpixel"):
         if importlib.util.find_spec(f"armstereo.reconstruct.{part}") is not None:
             modules[part] = importlib.import_module(f"armstereo.reconstruct.{part}")
     present = []
@@ -223,12 +242,10 @@ def profile_cones(options: dict, repeats: int) -> None:
 # --- parent: variants side by side ------------------------------------------------------------
 
 def run_worker(src: str | None, args) -> dict:
-    env = dict(os.environ)
-    if src:  # that tree's armstereo package first on the path
-        env["PYTHONPATH"] = os.pathsep.join([str(Path(src).resolve()),
-                                             env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
-    cmd = [sys.executable, __file__, "--worker", "--repeats", str(args.repeats),
-           "--options", args.options, "--clock", args.clock] + (["--masked"] if args.masked else [])
+    env = child_env(src=src)  # src: that tree's armstereo package first on the path
+    cmd = child_command("bench.stereo_stages", "--worker", "--repeats", str(args.repeats),
+                        "--options", args.options, "--clock", args.clock)
+    cmd += ["--masked"] if args.masked else []
     for name in args.case or ():
         cmd += ["--case", name]
     done = subprocess.run(cmd, env=env, capture_output=True, text=True)
@@ -340,7 +357,7 @@ def main(argv: list[str] | None = None) -> int:
     merged = {name: merge(runs) for name, runs in raw.items()}
     first = next(iter(merged.values()))
     parts = [f"# Stage times of birchfield() beside StereoSGBM (one thread)\n\n"
-             f"Command: `.venv/bin/python bench/stereo_stages.py "
+             f"Command: `.venv/bin/python -m bench.stereo_stages "
              f"{' '.join(argv if argv is not None else sys.argv[1:])}`  \n"
              f"Date: {time.strftime('%Y-%m-%d')}; {os.cpu_count()} cores, load average "
              f"{min(load):.1f}-{max(load):.1f} during the run; options {args.options}"
@@ -351,10 +368,7 @@ def main(argv: list[str] | None = None) -> int:
     for case in first["cases"]:
         parts.append(f"## Stages: {case}\n\n" + stage_table(case, merged))
     text = "\n".join(parts)
-    if args.out:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(text)
-    print(text)
+    write_report(text, args.out)
     return 0
 
 

@@ -13,7 +13,7 @@ blur) right after each of:
 The four alternate round by round inside one process, so that they meet the same load from
 the rest of the machine; medians over the rounds. One process per OpenMP setting (read once,
 at load): the defaults, ``OMP_WAIT_POLICY=PASSIVE`` and the ``workqueue`` threading layer.
-Run: ``.venv/bin/python bench/stereo_threads.py [--out bench/results/stereo_threads.md]``.
+Run: ``.venv/bin/python -m bench.stereo_threads [--out bench/results/stereo_threads.md]``.
 """
 
 from __future__ import annotations
@@ -27,8 +27,9 @@ import sys
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-RESULTS = ROOT / "bench" / "results" / "stereo_threads.md"
+from bench.harness import RESULTS, child_command, child_env, command_line, write_report
+
+RESULTS = RESULTS / "stereo_threads.md"
 SETTINGS = [
     ("OpenMP defaults", {}),
     ("OMP_WAIT_POLICY=PASSIVE", {"OMP_WAIT_POLICY": "PASSIVE"}),
@@ -40,7 +41,6 @@ ROUNDS = 30
 
 def probe() -> dict:
     """In this process: median stage times (ms) after each of :data:`BEFORE`, interleaved."""
-    sys.path.insert(0, str(ROOT))
     import cv2
     import numba
     import numpy as np
@@ -96,19 +96,17 @@ def main(argv: list[str] | None = None) -> int:
              "with 'after numba serial' in the same row (same process, same load).\n", head,
              "|---" * (len(BEFORE) + 1) + "|"]
     for label, env in SETTINGS:
-        proc = subprocess.run([sys.executable, __file__, "--probe"], check=True,
-                              capture_output=True, text=True, env={**os.environ, **env})
+        proc = subprocess.run(child_command("bench.stereo_threads", "--probe"), check=True,
+                              capture_output=True, text=True, env=child_env({**os.environ, **env}))
         r = json.loads(proc.stdout.splitlines()[-1])
         cells = [f"{t['remap']:.2f} / {t['convert+blur']:.2f}" for t in r["times"].values()]
         lines.append(f"| {label} ({r['layer']}) | " + " | ".join(cells) + " |")
         print(lines[-1], file=sys.stderr)
-    text = (f"# Stage times right after the matcher (threading)\n\nCommand: `.venv/bin/python "
-            f"bench/stereo_threads.py`  \nDate: {time.strftime('%Y-%m-%d')}; "
+    text = (f"# Stage times right after the matcher (threading)\n\nCommand: "
+            f"`{command_line('bench.stereo_threads', [])}`  \nDate: {time.strftime('%Y-%m-%d')}; "
             f"{os.cpu_count()} cores; {ROUNDS} interleaved rounds per process.\n\n"
             + "\n".join(lines) + "\n")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(text)
-    print(text)
+    write_report(text, args.out)
     return 0
 
 

@@ -3,24 +3,10 @@ mutation testing covers (docs/testing.md §4)."""
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
-
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def load_mutation_module():
-    spec = importlib.util.spec_from_file_location("bench_mutation", ROOT / "bench" / "mutation.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses look their module up there
-    spec.loader.exec_module(module)
-    return module
-
-
-MUTATION = load_mutation_module()
+from bench import mutation as MUTATION
+from tests.support import ROOT
 
 
 @pytest.mark.parametrize("target", MUTATION.TARGETS, ids=lambda t: t.name)

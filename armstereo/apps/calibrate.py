@@ -46,8 +46,8 @@ from armstereo.capture.view_tour import ViewTour, plan_view_tour, tour_settings
 from armstereo.devices import Camera
 from armstereo.errors import ArmstereoError
 from armstereo.io.files import write_text_atomic
-from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
+from armstereo.robot.arm_model import ArmModel
 
 
 @dataclass
@@ -175,10 +175,10 @@ def calibrate_mock_cell(out: Path, recording: Path, settings: MockCalibration,
     from armstereo import backends
     from armstereo.calibration.board import parse_board
     from armstereo.calibration.session import calibration_metadata
-    from armstereo.capture.kinematics import choose_kinematics
     from armstereo.capture.run import model_metadata
     from armstereo.capture.session import capture_to_file
     from armstereo.robot.model_file import load_arm_model
+    from armstereo.robot.source import choose_kinematics
 
     board = parse_board(settings.board)
     model = load_arm_model(settings.robot, mount=CameraMount.load(None))

@@ -33,24 +33,31 @@ from armstereo.apps.demo_score import (
     score_reconstruction,
 )
 from armstereo.capture import CaptureSettings, plan_capture
-from armstereo.capture.kinematics import CaptureKinematics, choose_kinematics
 from armstereo.capture.plan import validate_settings
 from armstereo.capture.run import model_metadata
 from armstereo.capture.session import capture_to_file
 from armstereo.errors import ConfigError
 from armstereo.evaluation.scene_truth import SceneTruth
 from armstereo.io.files import write_text_atomic
-from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
 from armstereo.photometric.correct import as_options, for_recording, record_json
 from armstereo.reconstruct import warmup
 from armstereo.reconstruct.outputs import write_outputs
 from armstereo.reconstruct.pipeline import reconstruct_pair
-from armstereo.reconstruct.stereo import CLEAN_PHOTO_CHECK
+from armstereo.reconstruct.stereo_options import (
+    CLEAN_PHOTO_CHECK,
+    BirchfieldOptions,
+    StereoOptions,
+    matcher_record,
+    options_for,
+    resolve_matcher,
+)
 from armstereo.recording import Recording
 from armstereo.recording.inspect import summarize
 from armstereo.recording.remount import remounted
+from armstereo.robot.arm_model import ArmModel
 from armstereo.robot.model_file import load_arm_model
+from armstereo.robot.source import CaptureKinematics, choose_kinematics
 from armstereo.scene.export import analyze_points
 
 __all__ = ["DEFAULT_BASELINE_M", "DEMO_FILES", "DemoOptions", "demo_settings",
@@ -73,7 +80,7 @@ class DemoOptions:
 
     robot: str = "ur5e"
     baseline: float = DEFAULT_BASELINE_M
-    method: str = "birchfield"
+    method: str | None = None  # None: ``stereo``'s method, else "birchfield"
     seed: int = 0
     # Grey levels of extra Gaussian noise; None: 1.0 on the ideal profile (a real sensor is
     # never noise free), 0 on the others (their image effects carry the sensor's noise).
@@ -85,8 +92,10 @@ class DemoOptions:
     # first and use the mount file that writes (``calibrate``), or the bundled mount file
     # when ``calibrate`` is False.
     mount: CameraMount | None = None
-    # Options of the matcher; None: the profile's choice (see :meth:`matcher_options`).
+    # Options of the matcher: an options object, or the older dict of its keywords; None:
+    # the profile's choice (see :meth:`matcher`).
     stereo_options: dict | None = None
+    stereo: StereoOptions | None = None
     # None: calibrate unless ``mount`` is given. The calibration: board, views, corner views.
     calibrate: bool | None = None
     board: str = DEMO_BOARD
@@ -98,6 +107,10 @@ class DemoOptions:
     # Also reconstruct the pair with the bundled mount file (the "before" figures).
     compare: bool = True
 
+    def __post_init__(self) -> None:
+        if self.method is None:  # frozen: set once, here
+            object.__setattr__(self, "method", getattr(self.stereo, "method", "birchfield"))
+
     @property
     def calibrates(self) -> bool:
         return self.mount is None if self.calibrate is None else bool(self.calibrate)
@@ -106,16 +119,24 @@ class DemoOptions:
     def profile_name(self) -> str:
         return getattr(self.profile, "name", self.profile)
 
+    def matcher(self) -> StereoOptions:
+        """How the demo matches: ``stereo`` or ``stereo_options`` if given; else, on the ideal
+        profile with Birchfield-Tomasi, the photo-consistency check for clean views (both views
+        see the same intensities there, so a match that does not look alike is the foreground
+        carried across a depth edge: bench/results/footprint.md), else the defaults.
+        ConfigError for options of another method than ``method``."""
+        if self.stereo is not None or self.stereo_options is not None:
+            return resolve_matcher(self.method, self.stereo, self.stereo_options,
+                                   error=ConfigError)
+        if self.profile_name == "ideal" and self.method == "birchfield":
+            return BirchfieldOptions(photo_check=CLEAN_PHOTO_CHECK)
+        return options_for(self.method, error=ConfigError)
+
     def matcher_options(self) -> dict:
-        """The matcher's options: ``stereo_options`` if given; else, on the ideal profile
-        with Birchfield-Tomasi, the photo-consistency check for clean views (both views see
-        the same intensities there, so a match that does not look alike is the foreground
-        carried across a depth edge: bench/results/footprint.md), else the defaults."""
+        """The matcher's options beyond its defaults, by name (``stereo_options`` as given)."""
         if self.stereo_options is not None:
             return dict(self.stereo_options)
-        if self.profile_name == "ideal" and self.method == "birchfield":
-            return {"photo_check": CLEAN_PHOTO_CHECK}
-        return {}
+        return self.matcher().non_defaults()
 
 
 def demo_settings(options: DemoOptions) -> CaptureSettings:
@@ -124,6 +145,7 @@ def demo_settings(options: DemoOptions) -> CaptureSettings:
     settings = CaptureSettings(baseline=options.baseline, direction=np.array([1.0, 0.0, 0.0]),
                                pairs=1)
     validate_settings(settings)
+    options.matcher()  # the matcher's options are checked here too
     as_options(options.photometric)
     if options.calibrates:
         from armstereo.calibration.board import parse_board
@@ -188,8 +210,7 @@ def _run(out_dir, options, settings, n, timings, t_start, compiling, progress) -
          "later runs reuse the cache)")
     warmup.wait(compiling)
     photometric = for_recording(options.photometric, recording.metadata)
-    recon = reconstruct_pair(pair, method=options.method,
-                             stereo_options=options.matcher_options(), photometric=photometric)
+    recon = reconstruct_pair(pair, stereo=options.matcher(), photometric=photometric)
     timings.update({k: recon.timings_s[k] for k in ("decode", "photometric", "rectify",
                                                     "match", "triangulate")})
 
@@ -295,8 +316,8 @@ def _before(pair, bundled: CameraMount, metadata: dict[str, str], truth: SceneTr
     """The same pair reconstructed with the bundled mount file (what skipping the
     calibration gives): the images as recorded, the camera as the bundled file says."""
     photometric = as_options(options.photometric).with_model(bundled.vignetting)
-    recon = reconstruct_pair(remounted(pair, bundled), method=options.method,
-                             stereo_options=options.matcher_options(), photometric=photometric)
+    recon = reconstruct_pair(remounted(pair, bundled), stereo=options.matcher(),
+                             photometric=photometric)
     return {"mount": bundled.name, **compare_mount(recon, pair, metadata, truth)}
 
 
@@ -377,6 +398,7 @@ def _report(recon, accuracy, timings: dict[str, float], options: DemoOptions) ->
         "method": options.method,
         # options passed to the matcher beyond its defaults (e.g. the ideal profile's check)
         "matcher_options": options.matcher_options(),
+        "matcher": matcher_record(recon.stereo),  # every option: how to match it again
         "disparity_range_px": [0, int(recon.window.max_disparity)],
         "depth_range_m": [round(recon.window.near, 4), round(recon.window.far, 4)],
         "robot": options.robot,

@@ -31,7 +31,6 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from armstereo import backends
-from armstereo.capture.kinematics import choose_kinematics
 from armstereo.capture.plan import CaptureSettings, Workspace
 from armstereo.capture.run import CaptureResult, model_metadata
 from armstereo.capture.scan_plan import (
@@ -44,7 +43,8 @@ from armstereo.capture.scan_plan import (
 from armstereo.capture.session import capture_to_file, confirm_live_motion
 from armstereo.capture.tour import ScanTour, plan_tour
 from armstereo.devices import MotionLimits
-from armstereo.kinematics import ArmModel
+from armstereo.robot.arm_model import ArmModel
+from armstereo.robot.source import choose_kinematics
 
 if TYPE_CHECKING:
     from armstereo.fusion.nbv import AutoTour

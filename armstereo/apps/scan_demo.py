@@ -9,7 +9,8 @@ calibrated on the cell (:func:`armstereo.apps.calibrate.calibrate_mock_cell`, th
 correction from the mount file's vignetting) and scored against the mock scene's exact
 geometry; a picture of the mesh is rendered headless. The same scan fused with the bundled
 mount file (``fused_bundled/``) gives the "before" figures. The default is the ``realistic``
-profile (the desk); ``ideal`` is the exact mock with 1 grey level of sensor noise.
+profile (the desk); ``ideal`` is the exact mock with 1 grey level of sensor noise. Numbers:
+docs/scan.md and docs/error-budget.md.
 """
 
 from __future__ import annotations
@@ -191,7 +192,7 @@ def _report(options: ScanDemoOptions, noise: float, outcome, fusion: dict,
         "viewpoints_kept": len(scan.views), "viewpoints_dropped": len(scan.dropped),
         "pairs": len(outcome.result.pairs), "baseline_m": options.baseline,
         "radius_m": options.radius, "elevation_deg": options.elevation_deg,
-        "voxel_m": options.voxel, "method": options.method,
+        "voxel_m": options.voxel, "method": options.method, "matcher": fusion["matcher"],
         "timings_s": {**({"calibrate": round(timings["calibrate"], 3)}
                          if "calibrate" in timings else {}),
                       "scan": round(timings["scan"], 3),

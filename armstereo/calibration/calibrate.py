@@ -18,7 +18,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from armstereo.calibration.board import Board, Detection, detect_board
-from armstereo.calibration.checks import CalibrationInputError, usable_views
+from armstereo.calibration.checks import (
+    MIN_CORNER_SPACING_PX,
+    CalibrationInputError,
+    usable_views,
+)
 from armstereo.calibration.handeye import (
     HandEyeEstimate,
     check_diversity,
@@ -28,7 +32,6 @@ from armstereo.calibration.handeye import (
 )
 from armstereo.calibration.intrinsics import (
     board_pose,
-    calibrate_intrinsics,
     check_distortion_model,
 )
 from armstereo.calibration.mount_file import mount_toml
@@ -39,15 +42,20 @@ from armstereo.calibration.report import (
     arm_error_warnings,
     board_pose_spread,
     error_effects,
+    held_out_prediction,
     leave_one_out,
     plausibility_warnings,
+    pose_noise_warnings,
+    prediction_mm,
     view_warnings,
 )
+from armstereo.calibration.screening import add_screening, check_fit, screen_session
+from armstereo.calibration.selection import REFINED, choose_hand_eye
 from armstereo.calibration.vignetting import estimate_vignetting
 from armstereo.camera_model import Intrinsics
 from armstereo.errors import ConfigError
-from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
+from armstereo.robot.arm_model import ArmModel
 from armstereo.transforms import invert
 
 log = logging.getLogger(__name__)
@@ -68,13 +76,16 @@ class CalibrationOptions:
     the hand-eye by millimetres). ``pose_error``: prior for the arm's pose error (its sigmas
     are re-estimated from the data); None trusts forward kinematics exactly.
     ``working_distance_m``: for the error's effect on a scan (default: the median board
-    distance of the views). ``vignetting``: estimate the lens's fall-off from the board's
-    white paper (:mod:`armstereo.calibration.vignetting`; needs the images, so only
-    :func:`calibrate_from_views` does it) and write it into the mount file. ``board_shape``:
-    estimate the print's scale error and bow with
-    the rest (:mod:`armstereo.calibration.refine`; a real print is neither exactly its spec's
-    size nor flat, and either biases the hand-eye and focal length while every residual looks
-    fine).
+    distance of the views). ``screen_views``: leave out views whose image disagrees with
+    their pose or whose corners are misread (screening.py); False keeps every usable view.
+    ``select_hand_eye``: with ``leave_one_out``, take the hand-eye (refinement or a closed
+    form) that predicts left-out views from their arm poses best (selection.py).
+    ``vignetting``: estimate the lens's fall-off from the board's white paper
+    (:mod:`armstereo.calibration.vignetting`; needs the images, so only
+    :func:`calibrate_from_poses` and :func:`calibrate_from_views` do it) and write it into the
+    mount file. ``board_shape``: estimate the print's scale error and bow with the rest
+    (:mod:`armstereo.calibration.refine`; a real print is neither exactly its spec's size nor
+    flat, and either biases the hand-eye and focal length while every residual looks fine).
     """
 
     distortion_model: str = "k1k2"
@@ -84,6 +95,8 @@ class CalibrationOptions:
     vignetting: bool = True
     leave_one_out: bool = True
     working_distance_m: float | None = None
+    screen_views: bool = True
+    select_hand_eye: bool = True
     mount_name: str = "calibrated_camera"
 
 
@@ -116,30 +129,41 @@ def calibrate_from_views(images: Sequence[np.ndarray], joint_positions: Sequence
     """
     if len(images) != len(joint_positions):
         raise ConfigError(f"{len(images)} images but {len(joint_positions)} joint vectors")
+    flanges = [model.flange_pose(q) for q in joint_positions]
+    return calibrate_from_poses(images, flanges, board, intrinsics=intrinsics,
+                                options=options)
+
+
+def calibrate_from_poses(images: Sequence[np.ndarray], T_base_flange: Sequence[np.ndarray],
+                         board: Board, *, intrinsics: Intrinsics | None = None,
+                         options: CalibrationOptions = CalibrationOptions()) -> Calibration:
+    """Calibrate from one image (uint8 grey/BGR) and one flange pose (4x4 ``T_base_flange``,
+    base frame, metres) per view: for poses recorded by another tool. See
+    :func:`calibrate_from_views`."""
+    if len(images) != len(T_base_flange):
+        raise ConfigError(f"{len(images)} images but {len(T_base_flange)} poses")
     if not images:
         raise CalibrationInputError("no views to calibrate from; record some (15 is good)")
     sizes = {np.shape(img)[1::-1] for img in images}
     if len(sizes) != 1:
         raise ConfigError(f"all views must have one image size, got {sorted(sizes)}")
-    size = sizes.pop()
     detections = [detect_board(img, board) for img in images]
-    flanges = [model.flange_pose(q) for q in joint_positions]
-    cal = calibrate_from_detections(detections, flanges, board, size, intrinsics=intrinsics,
-                                    options=options)
+    cal = calibrate_from_detections(detections, T_base_flange, board, sizes.pop(),
+                                    intrinsics=intrinsics, options=options)
     if options.vignetting:
-        cal = _with_vignetting(cal, images, flanges, board, options)
+        cal = _with_vignetting(cal, images, T_base_flange, board)
     return cal
 
 
 def _with_vignetting(cal: Calibration, images: Sequence[np.ndarray],
-                     flanges: Sequence[np.ndarray], board: Board,
-                     options: CalibrationOptions) -> Calibration:
+                     flanges: Sequence[np.ndarray], board: Board) -> Calibration:
     """``cal`` with the fall-off fitted to its views (report ``vignetting``, the mount file's
-    ``[vignetting]`` section); unchanged, with a warning, when too little paper was seen."""
+    ``[vignetting]`` section); unchanged, with a warning, when too little paper was seen. The
+    board poses are the joint refinement's (with its intrinsics and per-view pose errors)."""
     r = cal.refined
     views = cal.views_used
-    T_cb = [invert(r.T_flange_camera) @ invert(flanges[i] @ exp6(r.delta[k])) @ r.T_base_board
-            for k, i in enumerate(views)]
+    T_cb = [invert(r.T_flange_camera) @ invert(np.asarray(flanges[i], float) @ exp6(r.delta[k]))
+            @ r.T_base_board for k, i in enumerate(views)]
     fit = estimate_vignetting([images[i] for i in views], board, r.intrinsics, T_cb)
     if fit is None:
         cal.report["warnings"].append("too little of the board's white paper was seen to "
@@ -152,10 +176,9 @@ def _with_vignetting(cal: Calibration, images: Sequence[np.ndarray],
             f"the board never came near the image corners (largest radius "
             f"{fit.max_radius:.2f} of the half-diagonal): the vignetting there is extrapolated; "
             "record views with the board in the corners (--corner-views)")
-    comments = _mount_comments(board, views, r, cal.leave_one_out)
-    text = mount_toml(options.mount_name, r.T_flange_camera, r.intrinsics, comments,
-                      vignetting=fit.model)
-    cal.mount = CameraMount(options.mount_name, r.T_flange_camera, r.intrinsics, text,
+    m = cal.mount
+    text = m.source.rstrip("\n") + "\n\n" + "\n".join(fit.model.toml_lines())
+    cal.mount = CameraMount(m.name, m.T_flange_camera, m.intrinsics, text,
                             vignetting=fit.model)
     return cal
 
@@ -178,12 +201,12 @@ def calibrate_from_detections(detections: Sequence[Detection | None],
     views, warnings = usable_views(detections)
     dets = [detections[i] for i in views]
     flanges = [as_rigid(T_base_flange[i], f"T_base_flange of view {i}") for i in views]
-
-    if intrinsics is None:
-        intr_fit = calibrate_intrinsics(dets, size, distortion_model=options.distortion_model)
-        intr0 = intr_fit.intrinsics
-    else:
-        intr_fit, intr0 = None, intrinsics
+    screened = screen_session(views, dets, flanges, board, size, given=intrinsics,
+                              distortion_model=options.distortion_model,
+                              screen=options.screen_views)
+    views, dets, flanges = screened.views, screened.detections, screened.flanges
+    warnings += screened.warnings
+    intr_fit, intr0 = screened.intrinsics_fit, screened.intrinsics
     T_cb = [board_pose(d, intr0) for d in dets]
 
     pairs = motion_pairs(flanges, T_cb)
@@ -202,6 +225,10 @@ def calibrate_from_detections(detections: Sequence[Detection | None],
                               refine_intrinsics=refine_k,
                               distortion_model=options.distortion_model,
                               board_shape=options.board_shape, board_center=board.center[:2])
+    modelled = options.pose_error is not None
+    check_fit(refined.intrinsics, intr0, refined.rms_px, intrinsics_given=intrinsics is not None,
+              arm_error_m=refined.pose_sigma_t if modelled else 0.0,
+              arm_error_deg=float(np.degrees(refined.pose_sigma_r)) if modelled else 0.0)
     loo = None
     if options.leave_one_out:
         loo = leave_one_out(dets, flanges, refined, trusts_arm=options.pose_error is None,
@@ -209,8 +236,19 @@ def calibrate_from_detections(detections: Sequence[Detection | None],
     warnings += view_warnings(refined.per_view_rms_px, views)
     if options.pose_error is not None:
         warnings += arm_error_warnings(refined.pose_sigma_t, float(np.degrees(
-            refined.pose_sigma_r)), loo.held_out_rms_all_px if loo else None, refined.rms_px)
-    warnings += plausibility_warnings(refined.T_flange_camera)
+            refined.pose_sigma_r)), None, refined.rms_px)
+    chosen = None
+    if loo is not None and options.select_hand_eye:
+        chosen, loo = choose_hand_eye(dets, flanges, refined, loo)
+    X_final = refined.T_flange_camera if chosen is None else chosen.T_flange_camera
+    B_final = refined.T_base_board if chosen is None else chosen.T_base_board
+    warnings += plausibility_warnings(X_final)
+    fit_mm = np.array([prediction_mm(d, F, X_final, B_final, refined.intrinsics)
+                       for d, F in zip(dets, flanges, strict=True)])
+    if loo is not None:
+        warnings += pose_noise_warnings(_rms_of(loo.held_out_mm), _rms_of(fit_mm),
+                                        loo.translation_m, loo.held_out_rms_all_px,
+                                        refined.rms_px)
 
     T_cb_final = [board_pose(d, refined.intrinsics) for d in dets]
     distances = [float(np.linalg.norm((C @ np.append(board.center, 1.0))[:3]))
@@ -218,10 +256,19 @@ def calibrate_from_detections(detections: Sequence[Detection | None],
     work_d = options.working_distance_m or float(np.median(distances))
     report = _report(board, len(detections), views, detections, intr_fit, intrinsics,
                      refined, closed, diversity, loo, flanges, T_cb_final, work_d, warnings,
-                     options)
+                     options, X_final)
+    add_screening(report, screened)
+    if chosen is not None:
+        report["quality"]["selection"] = chosen.report
+    if loo is not None:
+        report["quality"]["held_out_prediction"] = held_out_prediction(loo, fit_mm)
+        report["quality"]["predicted_error"]["held_out_prediction_mm"] = _rms_of(loo.held_out_mm)
     comments = _mount_comments(board, views, refined, loo)
-    text = mount_toml(options.mount_name, refined.T_flange_camera, refined.intrinsics, comments)
-    mount = CameraMount(options.mount_name, refined.T_flange_camera, refined.intrinsics, text)
+    if chosen is not None and chosen.name != REFINED:
+        comments.append(f"Hand-eye from the {chosen.name} closed form: it predicts left-out "
+                        "views from their arm poses better than the joint refinement.")
+    text = mount_toml(options.mount_name, X_final, refined.intrinsics, comments)
+    mount = CameraMount(options.mount_name, X_final, refined.intrinsics, text)
     for w in warnings:
         log.debug("calibration warning: %s", w)
     return Calibration(mount, report, refined, closed, views, loo)
@@ -231,8 +278,8 @@ def _report(board: Board, n_recorded: int, views: list[int],
             detections: Sequence[Detection | None], intr_fit, given: Intrinsics | None,
             refined: RefineResult, closed: dict[str, HandEyeEstimate], diversity, loo,
             flanges, T_cb, work_d: float, warnings: list[str],
-            options: CalibrationOptions) -> dict:
-    X = refined.T_flange_camera
+            options: CalibrationOptions, X_final: np.ndarray | None = None) -> dict:
+    X = refined.T_flange_camera if X_final is None else X_final
     intr = refined.intrinsics
     spread_t, spread_r = board_pose_spread(flanges, X, T_cb)
     delta = refined.delta
@@ -243,7 +290,7 @@ def _report(board: Board, n_recorded: int, views: list[int],
             "used": views,
             "board_not_found": [i for i, d in enumerate(detections) if d is None],
             "board_too_small": [i for i, d in enumerate(detections)
-                                if d is not None and i not in views],
+                                if d is not None and d.spacing_px < MIN_CORNER_SPACING_PX],
         },
         "intrinsics": {
             "source": "given" if given is not None else "estimated",
@@ -256,10 +303,11 @@ def _report(board: Board, n_recorded: int, views: list[int],
             "refined_with_hand_eye": options.refine_intrinsics and given is None,
         },
         "motion": diversity.as_dict(),
-        "closed_form": {name: _closed_entry(est, X) for name, est in closed.items()},
+        "closed_form": {name: _closed_entry(est, refined.T_flange_camera)
+                        for name, est in closed.items()},
         "refined": {
-            "T_flange_camera": X.tolist(),
-            "T_camera_flange": invert(X).tolist(),
+            "T_flange_camera": refined.T_flange_camera.tolist(),
+            "T_camera_flange": invert(refined.T_flange_camera).tolist(),
             "T_base_board": refined.T_base_board.tolist(),
             "board_shape": _shape_entry(refined, board),
             "rms_px": refined.rms_px,
@@ -320,6 +368,10 @@ def _closed_entry(est: HandEyeEstimate, X_refined: np.ndarray) -> dict:
             "residual_rotation_deg": est.residual_rotation_deg,
             "residual_translation_m": est.residual_translation_m,
             "difference_to_refined": {"translation_m": dt, "rotation_deg": dr}}
+
+
+def _rms_of(v) -> float:
+    return float(np.sqrt(np.mean(np.square(v)))) if len(v) else 0.0
 
 
 def _rms_norm(v: np.ndarray) -> float:

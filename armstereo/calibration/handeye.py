@@ -1,4 +1,4 @@
-"""Closed-form hand-eye calibration (eye in hand): OpenCV's five AX = XB methods.
+"""Closed-form hand-eye calibration (eye in hand): the five classic AX = XB methods.
 
 Inputs per view: ``T_base_flange`` (forward kinematics, controller ``base`` frame) and
 ``T_camera_board`` (board in camera_optical, from PnP). Output: ``T_flange_camera``
@@ -8,8 +8,10 @@ A motion pair (i, j) is the flange motion ``A = T_base_flange[j]^-1 T_base_flang
 camera motion ``B = T_camera_board[j] T_camera_board[i]^-1``; ``A X = X B``. A pair with a tiny
 rotation says almost nothing about X and one near 180 degrees makes the rotation axis (and the
 quaternion sign the methods rely on) ill-defined. OpenCV forms *every* pair of the views it is
-given, so pairs cannot be skipped one by one: :func:`closed_form_views` drops the fewest views
-that leave no such pair among the rest. The joint refinement (refine.py) uses every view.
+given, so with OpenCV such pairs can only be avoided by dropping whole views
+(:func:`closed_form_views`, kept for comparison). :func:`closed_form_all` instead leaves out
+the pairs themselves (:mod:`handeye_pairs`), so every view given keeps its good pairs, and the
+closed forms use the same views as the joint refinement (refine.py).
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ from armstereo.calibration.checks import (
     WEAK_AXIS_SPREAD_DEG,
     CalibrationInputError,
 )
+from armstereo.calibration.handeye_pairs import solve_pairs
 from armstereo.calibration.poses import rotation_angle_deg, rotvec
 from armstereo.transforms import invert, make_T
 
@@ -217,26 +220,27 @@ def ax_xb_residuals(pairs: Sequence[MotionPair], X: np.ndarray) -> tuple[float, 
 
 def closed_form_all(T_base_flange: Sequence[np.ndarray], T_camera_board: Sequence[np.ndarray],
                     pairs: Sequence[MotionPair] | None = None) -> dict[str, HandEyeEstimate]:
-    """Every OpenCV method on the views :func:`closed_form_views` keeps.
+    """Every method on every usable pair (rotation 5-165 deg) of all the given views.
 
-    Residuals are over the usable pairs of *all* views. A method that fails or returns a
-    non-finite result is left out (logged at debug level).
+    Residuals are over the same pairs. A method that fails or returns a non-finite result is
+    left out (logged at debug level). CalibrationInputError when fewer than
+    MIN_USABLE_PAIRS pairs are usable.
     """
     pairs = motion_pairs(T_base_flange, T_camera_board) if pairs is None else pairs
-    views = closed_form_views(pairs, len(T_base_flange))
-    if len(views) < 3:
-        raise CalibrationInputError(
-            f"only {len(views)} views remain once pairs rotating less than "
-            f"{MIN_PAIR_ROTATION_DEG:g} or more than {MAX_PAIR_ROTATION_DEG:g} deg are avoided "
-            "(need >= 3); record views with more varied camera orientations")
     usable = [p for p in pairs if p.usable]
-    Tg = [T_base_flange[i] for i in views]
-    Tc = [T_camera_board[i] for i in views]
+    if len(usable) < MIN_USABLE_PAIRS:
+        raise CalibrationInputError(
+            f"only {len(usable)} view pairs rotate between {MIN_PAIR_ROTATION_DEG:g} and "
+            f"{MAX_PAIR_ROTATION_DEG:g} deg (need >= {MIN_USABLE_PAIRS}); record views with "
+            "more varied camera orientations")
+    A = np.array([p.A for p in usable])
+    B = np.array([p.B for p in usable])
+    weights = np.ones(len(usable))
     out = {}
     for name in METHODS:
         try:
-            X = solve_hand_eye(Tg, Tc, name)
-        except cv2.error as err:
+            X = solve_pairs(name, A, B, weights)
+        except (np.linalg.LinAlgError, ValueError) as err:
             log.debug("hand-eye method %s failed: %s", name, err)
             continue
         if not np.all(np.isfinite(X)):

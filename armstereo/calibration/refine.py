@@ -42,6 +42,7 @@ from armstereo.calibration.board import Detection
 from armstereo.calibration.intrinsics import DISTORTION_MODELS
 from armstereo.calibration.poses import chart_jacobian, exp6
 from armstereo.camera_model import Intrinsics
+from armstereo.errors import ConfigError
 from armstereo.transforms import invert
 
 DEFAULT_PIXEL_SIGMA = 0.3  # px, starting value; estimated from the residuals
@@ -237,7 +238,7 @@ def _levenberg_marquardt(prob: _Problem, x: np.ndarray, cost_tol: float):
         while True:
             step = normal.solve(lam)
             x_new = x + step
-            cost_new = _cost(prob, x_new)
+            cost_new = _cost_or_inf(prob, x_new)
             if cost_new <= cost:
                 break
             lam *= 10.0
@@ -330,6 +331,19 @@ def _residuals(prob: _Problem, x: np.ndarray) -> np.ndarray:
     if prob.with_delta:
         out.append((prob.split(x)[3] / _prior_scale(prob)).ravel())
     return np.concatenate(out)
+
+
+def _cost_or_inf(prob: _Problem, x: np.ndarray) -> float:
+    """The cost, or infinity where a step leaves the valid cameras (a focal length through
+    zero, non-finite numbers): such a step is rejected like one that raises the cost, so the
+    fit never walks into an invalid camera."""
+    if not np.all(np.isfinite(x)):
+        return math.inf
+    try:
+        cost = _cost(prob, x)
+    except ConfigError:  # Intrinsics refuses the camera matrix
+        return math.inf
+    return cost if math.isfinite(cost) else math.inf
 
 
 def _cost(prob: _Problem, x: np.ndarray) -> float:

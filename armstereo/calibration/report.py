@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -36,6 +36,8 @@ ARM_ERROR_WARN_M = 0.0003
 ARM_ERROR_WARN_DEG = 0.02
 HELD_OUT_WARN_FACTOR = 2.0  # held-out reprojection this many times the fit's: arm disagrees
 MAX_PLAUSIBLE_CAMERA_DISTANCE_M = 0.3  # camera origin this far from the flange: suspicious
+POSE_NOISE_WARN_MM = 1.0  # held-out prediction error (RMS) above which the poses limit ...
+POSE_NOISE_FACTOR = 3.0  # ... when it is also this many times the predicted hand-eye error
 
 
 @dataclass(frozen=True)
@@ -47,6 +49,9 @@ class LeaveOneOut:
     rotation_se_deg: np.ndarray  # (3,)
     held_out_rms_px: np.ndarray  # (V,)
     held_out_rms_all_px: float
+    # (V,) RMS distance (mm) of each left-out view's board corners (PnP) from where its
+    # reported pose and the fit without it put them: what a scan placed from that pose sees
+    held_out_mm: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def translation_m(self) -> float:
@@ -66,7 +71,7 @@ def leave_one_out(detections: Sequence[Detection], T_base_flange: Sequence[np.nd
     n = len(detections)
     prior = None if trusts_arm else PoseErrorPrior(full.pose_sigma_t, full.pose_sigma_r,
                                                    estimate=False)
-    t_dev, r_dev, held, held_sq = [], [], [], []
+    t_dev, r_dev, held, held_sq, held_mm = [], [], [], [], []
     for i in range(n):
         keep = [k for k in range(n) if k != i]
         fit = refine_hand_eye([detections[k] for k in keep], [T_base_flange[k] for k in keep],
@@ -83,10 +88,41 @@ def leave_one_out(detections: Sequence[Detection], T_base_flange: Sequence[np.nd
         e = reprojection_errors(held_out, fit.intrinsics, T_cb)
         held.append(math.sqrt(float(np.mean(e**2))))
         held_sq.append(e**2)
+        held_mm.append(prediction_mm(held_out, T_base_flange[i], X, fit.T_base_board,
+                                     fit.intrinsics))
     t_se = _jackknife_se(np.array(t_dev))
     r_se = np.degrees(_jackknife_se(np.array(r_dev)))
     return LeaveOneOut(t_se, r_se, np.array(held),
-                       math.sqrt(float(np.mean(np.concatenate(held_sq)))))
+                       math.sqrt(float(np.mean(np.concatenate(held_sq)))), np.array(held_mm))
+
+
+def prediction_mm(det: Detection, T_base_flange: np.ndarray, T_flange_camera: np.ndarray,
+                  T_base_board: np.ndarray, intrinsics: Intrinsics) -> float:
+    """RMS distance (mm) of a view's board corners where its image puts them (PnP) from where
+    its reported arm pose, the hand-eye and the board pose put them (camera frame)."""
+    from armstereo.calibration.consensus import prediction_error_mm
+    from armstereo.calibration.intrinsics import board_pose
+
+    return prediction_error_mm(board_pose(det, intrinsics), T_base_flange, T_flange_camera,
+                               T_base_board, det.object_points)
+
+
+def held_out_prediction(loo: LeaveOneOut, fit_mm: np.ndarray) -> dict:
+    """``quality.held_out_prediction``: the left-out views' prediction errors in mm beside
+    the same number for the views in the fit (reported poses, no pose correction)."""
+    return {
+        "rms_mm": _rms(loo.held_out_mm), "median_mm": float(np.median(loo.held_out_mm)),
+        "per_view_mm": loo.held_out_mm.tolist(),
+        "fit_rms_mm": _rms(fit_mm), "fit_median_mm": float(np.median(fit_mm)),
+        "basis": "board corners seen in each view (PnP) against where its reported arm pose, "
+                 "the hand-eye and the board pose put them; held out: fitted without that "
+                 "view. A scan placed from the arm's poses is off by about this much.",
+    }
+
+
+def _rms(v) -> float:
+    v = np.asarray(v, float)
+    return float(np.sqrt(np.mean(v**2))) if v.size else 0.0
 
 
 def _jackknife_se(values: np.ndarray) -> np.ndarray:
@@ -148,6 +184,28 @@ def arm_error_warnings(sigma_t_m: float, sigma_r_deg: float, held_out_px: float 
     return out
 
 
+def pose_noise_warnings(held_out_rms_mm: float, fit_rms_mm: float,
+                        predicted_translation_m: float, held_out_px: float,
+                        fit_px: float) -> list[str]:
+    """Say it in millimetres when the arm's poses, not the images, limit the result: the
+    left-out views are predicted more than POSE_NOISE_WARN_MM off, and either much worse than
+    the fit's pixels (HELD_OUT_WARN_FACTOR) or than the hand-eye's predicted error accounts
+    for (POSE_NOISE_FACTOR)."""
+    if not held_out_rms_mm > POSE_NOISE_WARN_MM:
+        return []
+    if not (held_out_px > HELD_OUT_WARN_FACTOR * fit_px
+            or held_out_rms_mm > POSE_NOISE_FACTOR * predicted_translation_m * 1000):
+        return []
+    return [f"views left out of the fit are predicted {held_out_rms_mm:.2f} mm off (RMS, "
+            f"{held_out_px:.2f} px; the fit's corners {fit_px:.2f} px, its views "
+            f"{fit_rms_mm:.2f} mm from their reported poses): the arm's poses are noisier "
+            "than the images (nominal kinematics, or poses of a TCP or another end-effector "
+            f"frame, not the flange); the predicted hand-eye error is "
+            f"{predicted_translation_m * 1000:.2f} mm, and a scan placed from these poses "
+            f"will be off by about {max(held_out_rms_mm, predicted_translation_m * 1000):.1f} "
+            "mm"]
+
+
 def plausibility_warnings(T_flange_camera: np.ndarray) -> list[str]:
     dist = float(np.linalg.norm(T_flange_camera[:3, 3]))
     if dist > MAX_PLAUSIBLE_CAMERA_DISTANCE_M:
@@ -176,7 +234,10 @@ def report_lines(report: dict) -> list[str]:
         lines += [
             f"predicted error (leave-one-out): {p['translation_m'] * 1000:.2f} mm, "
             f"{p['rotation_deg']:.3f} deg",
-            f"held-out views reprojected with {h['rms']:.2f} px (fit {ref['rms_px']:.2f} px)",
+            f"held-out views reprojected with {h['rms']:.2f} px (fit {ref['rms_px']:.2f} px)"
+            + (f", predicted {q['held_out_prediction']['rms_mm']:.2f} mm off (fit "
+               f"{q['held_out_prediction']['fit_rms_mm']:.2f} mm)"
+               if "held_out_prediction" in q else ""),
             f"at {e['working_distance_m']:.2f} m the cloud may be placed "
             f"{e['placement_error_m'] * 1000:.1f} mm off and surfaces tilt "
             f"{e['surface_tilt_m'] * 1000:.1f} mm across the view",

@@ -5,7 +5,7 @@ A calibration session is an ordinary armstereo recording (``RecordingWriter.writ
 view: image, actual joints, /tf with the *nominal* mount) whose ``armstereo`` metadata record
 also holds the keys below. The computation uses only the images, the joints and the arm's
 kinematics the session recorded (the controller's calibrated DH table when it was read, see
-:mod:`armstereo.capture.kinematics`; nominal kinematics would bias the hand-eye), so a
+:mod:`armstereo.robot.source`; nominal kinematics would bias the hand-eye), so a
 recomputation gives the same mount. A mock session also records the mock camera's truth
 (``mock_camera_truth``), which grades the result (``truth_error``).
 """
@@ -22,20 +22,28 @@ from armstereo.calibration.board import Board, parse_board
 from armstereo.calibration.calibrate import (
     Calibration,
     CalibrationOptions,
+    calibrate_from_poses,
     calibrate_from_views,
 )
 from armstereo.calibration.mount_file import truth_error
 from armstereo.camera_model import Intrinsics
-from armstereo.errors import ArmstereoError, RecordingError
-from armstereo.kinematics import ArmModel
+from armstereo.errors import ArmstereoError, ConfigError, RecordingError
 from armstereo.mount import CameraMount
 from armstereo.photometric.vignetting import Vignetting
 from armstereo.recording import Recording
+from armstereo.robot.arm_model import ArmModel
 
 PURPOSE_KEY = "purpose"
 PURPOSE = "calibration"
 BOARD_KEY = "calibration_board"  # the --board spec
 VIEWS_KEY = "calibration_views_planned"
+# Sessions imported from images and a pose file (``calibrate --images --poses``):
+POSE_SOURCE_KEY = "calibration_pose_source"  # "imported"; absent for live sessions
+IMPORT_SOURCE = "imported"
+IMPORT_POSE_KIND_KEY = "calibration_pose_kind"  # tcp | matrix | joints
+IMPORT_POSES_KEY = "calibration_poses_file"
+IMPORT_IMAGES_KEY = "calibration_image_names"  # JSON list, in view order
+INTRINSICS_KEY = "calibration_intrinsics"  # "given" (recorded on the calibration topic)
 
 
 def calibration_metadata(board: Board, views_planned: int) -> dict[str, str]:
@@ -57,6 +65,10 @@ class CalibrationSession:
     view_indices: list[int]
     warnings: list[str] = field(default_factory=list)
     metadata: dict[str, str] = field(default_factory=dict)
+    # imported TCP / matrix poses: the recorded flange poses (base frame), used instead of
+    # joints and kinematics; None for sessions with joints
+    flanges: list[np.ndarray] | None = None
+    intrinsics: Intrinsics | None = None  # held fixed: recorded as given
 
 
 def read_calibration_session(path: str | Path, board: Board | None = None) -> CalibrationSession:
@@ -78,21 +90,31 @@ def read_calibration_session(path: str | Path, board: Board | None = None) -> Ca
             raise RecordingError(f"{rec.path}: recorded board spec is unusable ({err})") from None
     if not rec.views:
         raise RecordingError(f"{rec.path} has no complete view")
+    pose_only = (meta.get(POSE_SOURCE_KEY) == IMPORT_SOURCE
+                 and meta.get(IMPORT_POSE_KIND_KEY) in ("tcp", "matrix"))
     images, joints, idx = [], [], []
     for v in rec.views:
-        if v.joint_positions is None:
+        if v.joint_positions is None and not pose_only:
             raise RecordingError(f"{rec.path}: view {v.index} has no joint states")
         images.append(v.image)
-        joints.append(np.asarray(v.joint_positions, dtype=float))
+        joints.append(np.asarray(v.joint_positions if v.joint_positions is not None else [],
+                                 dtype=float))
         idx.append(v.index)
     robot = meta.get("robot", "")
-    if not robot:
+    if not robot and not pose_only:
         raise RecordingError(f"{rec.path}: metadata names no robot model")
+    intrinsics = None
+    if meta.get(INTRINSICS_KEY) == "given":
+        intrinsics = rec.views[0].intrinsics
+        if intrinsics is None:
+            raise RecordingError(f"{rec.path}: the intrinsics were held but are not recorded")
     return CalibrationSession(Path(path), images, joints, board, robot,
-                              meta.get("mount_toml", ""), idx, list(rec.warnings), dict(meta))
+                              meta.get("mount_toml", ""), idx, list(rec.warnings), dict(meta),
+                              [v.T_base_flange.copy() for v in rec.views] if pose_only
+                              else None, intrinsics)
 
 
-# Kinematics sources whose recorded DH table is the arm's calibrated one (capture.kinematics).
+# Kinematics sources whose recorded DH table is the arm's calibrated one (robot.source).
 CALIBRATED_SOURCES = ("controller", "file")
 
 
@@ -154,16 +176,36 @@ def calibrate_recording(path: str | Path, *, board: Board | None = None,
     from armstereo.robot.model_file import load_arm_model
 
     session = read_calibration_session(path, board)
-    model = load_arm_model(robot) if robot else recorded_arm_model(session)
-    cal = calibrate_from_views(session.images, session.joints, model, session.board,
-                               options=options or CalibrationOptions())
+    options = options or CalibrationOptions()
+    if session.flanges is not None:  # imported poses: no kinematics involved
+        if robot:
+            raise ConfigError(f"{session.path} holds flange poses, not joints: --robot does "
+                              "not apply")
+        model = None
+        cal = calibrate_from_poses(session.images, session.flanges, session.board,
+                                   intrinsics=session.intrinsics, options=options)
+    else:
+        model = load_arm_model(robot) if robot else recorded_arm_model(session)
+        cal = calibrate_from_views(session.images, session.joints, model, session.board,
+                                   intrinsics=session.intrinsics, options=options)
     cal.report["recording"] = {"path": str(session.path), "views": session.view_indices,
                                "warnings": session.warnings}
-    cal.report["kinematics"] = {
-        "source": "given" if robot else session.metadata.get("kinematics_source", "unknown"),
-        "model": model.name,
-        "dh_sha256": model.dh.sha256 if model.dh is not None else "",
-    }
+    if model is None:
+        cal.report["kinematics"] = {"source": "poses", "model": "", "dh_sha256": "",
+                                    "pose_kind": session.metadata.get(IMPORT_POSE_KIND_KEY)}
+    else:
+        cal.report["kinematics"] = {
+            "source": "given" if robot else session.metadata.get("kinematics_source",
+                                                                 "unknown"),
+            "model": model.name,
+            "dh_sha256": model.dh.sha256 if model.dh is not None else "",
+        }
+    if session.metadata.get(POSE_SOURCE_KEY) == IMPORT_SOURCE:
+        cal.report["imported"] = {
+            "poses": session.metadata.get(IMPORT_POSES_KEY, ""),
+            "pose_kind": session.metadata.get(IMPORT_POSE_KIND_KEY, ""),
+            "images": json.loads(session.metadata.get(IMPORT_IMAGES_KEY, "[]")),
+        }
     truth = mock_true_mount(session)
     if truth is not None:
         cal.report["truth_error"] = truth_error(cal.mount, truth)

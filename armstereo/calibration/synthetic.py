@@ -22,8 +22,8 @@ from armstereo.calibration.poses import exp6
 from armstereo.calibration.views import ViewPlanSettings, plan_calibration_views
 from armstereo.camera_model import Intrinsics
 from armstereo.errors import ConfigError
-from armstereo.kinematics import ArmModel, ready_configuration
 from armstereo.mount import CameraMount
+from armstereo.robot.arm_model import ArmModel, ready_configuration
 from armstereo.transforms import invert, make_T, rot_x, rot_z
 from robot_models.generate_urdfs import SPECS
 

@@ -26,7 +26,7 @@ from armstereo.calibration.intrinsics import board_pose
 from armstereo.calibration.poses import as_rigid, rotmat
 from armstereo.camera_model import Intrinsics
 from armstereo.errors import ConfigError, IKError, PreflightError
-from armstereo.kinematics import ArmModel
+from armstereo.robot.arm_model import ArmModel
 from armstereo.transforms import invert, make_T
 
 GOLDEN_ANGLE_DEG = 180.0 * (3.0 - math.sqrt(5.0))  # ~137.5: azimuths never line up

@@ -26,7 +26,7 @@ from armstereo.devices import (
 )
 from armstereo.epipolar.motion import classify_motion
 from armstereo.errors import ConfigError, IKError, JointLimitError, PreflightError
-from armstereo.kinematics import ArmModel
+from armstereo.robot.arm_model import ArmModel
 
 NAMED_DIRECTIONS = {
     "x": (1.0, 0.0, 0.0), "-x": (-1.0, 0.0, 0.0),

@@ -19,7 +19,7 @@ import numpy as np
 from armstereo.capture.plan import CaptureSettings, PairStep, Step
 from armstereo.devices import Arm, Camera
 from armstereo.frame import Frame
-from armstereo.kinematics import ArmModel
+from armstereo.robot.arm_model import ArmModel
 
 log = logging.getLogger(__name__)
 
@@ -28,9 +28,9 @@ MOVE_TIMEOUT_MARGIN_S = 10.0  # on top of the planned duration of a move
 def model_metadata(model: ArmModel) -> dict[str, str]:
     """The recording metadata that identifies the software, arm model and camera mount: what
     every capture (CLI, demo, sweep) records so a replay can rebuild the same kinematics
-    (including the DH table, see :mod:`armstereo.capture.kinematics`)."""
+    (including the DH table, see :mod:`armstereo.robot.source`)."""
     from armstereo import __version__
-    from armstereo.capture.kinematics import kinematics_metadata
+    from armstereo.robot.source import kinematics_metadata
 
     return {"armstereo_version": __version__, "robot": model.name,
             "urdf_sha256": model.urdf_sha256, "mount": model.mount.name,

@@ -40,7 +40,7 @@ import numpy as np
 
 from armstereo.capture.plan import Workspace
 from armstereo.errors import ConfigError, IKError
-from armstereo.kinematics import ArmModel, ready_configuration
+from armstereo.robot.arm_model import ArmModel, ready_configuration
 from armstereo.transforms import make_T, rot_z
 
 MAX_VIEWPOINTS = 200

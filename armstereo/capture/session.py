@@ -15,7 +15,7 @@ from pathlib import Path
 from armstereo.capture.run import CapturePlanLike, CaptureResult, ViewHook, run_capture
 from armstereo.devices import Arm, Camera
 from armstereo.errors import ArmstereoError, UserAbort
-from armstereo.kinematics import ArmModel
+from armstereo.robot.arm_model import ArmModel
 
 log = logging.getLogger(__name__)
 

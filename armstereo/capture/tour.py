@@ -45,7 +45,7 @@ from armstereo.capture.plan import (
 )
 from armstereo.capture.scan_plan import ScanPlan, ScanView, order_tour
 from armstereo.devices import trapezoid_duration
-from armstereo.kinematics import ArmModel
+from armstereo.robot.arm_model import ArmModel
 
 JOINT_PATH_STEP_RAD = 0.01  # joint-move samples: at most this change of any joint apart
 MAX_DROPPED_SHOWN = 3  # dropped viewpoints named in a refusal

@@ -34,7 +34,7 @@ from armstereo.capture.plan import (
 )
 from armstereo.capture.tour import Leg, check_legs, joint_leg, joint_path
 from armstereo.devices import MotionLimits
-from armstereo.kinematics import ArmModel
+from armstereo.robot.arm_model import ArmModel
 
 SAME_JOINTS_RAD = 1e-9  # a move shorter than this is not made
 # CaptureSettings fields a view tour does not use (it records no pairs).

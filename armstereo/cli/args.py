@@ -28,6 +28,12 @@ def _typed(check: Callable[[str], object], name: str) -> Callable[[str], object]
     return convert
 
 
+def checked(check: Callable[[str], object]) -> Callable[[str], object]:
+    """An argparse ``type=`` from a check that raises ArmstereoError for a bad value (the
+    ``type`` an options field's flag names, e.g. ``validate.whole``-based)."""
+    return _typed(check, check.__name__.strip("_").replace("_", " "))
+
+
 def positive(unit: str, *, cap: float | None = None) -> Callable[[str], float]:
     """A finite number > 0 (and <= ``cap``)."""
     return _typed(lambda t: validate.positive(t, "value", unit, cap=cap), "positive number")

@@ -1,6 +1,6 @@
 """Command-line flags of the arm and camera backends, generated from their config dataclasses.
 
-Every backend flag is declared once, on its config field (:func:`armstereo.backends.option`).
+Every backend flag is declared once, on its config field (:func:`armstereo.flags.option`).
 Flags are parsed with no default, so we know which ones the user gave; a flag given for a
 backend that is not selected is an error ("--exposure applies to --camera opencv only"),
 never silently ignored.
@@ -14,7 +14,7 @@ from typing import Any
 
 from armstereo import backends
 from armstereo.errors import ConfigError
-from armstereo.kinematics import MODEL_NAMES
+from armstereo.robot.arm_model import MODEL_NAMES
 
 _DEST = "backend_flag:"  # argparse dest prefix of generated flags
 

@@ -3,7 +3,9 @@
 Live: grab the start image, find the board, plan ``--views`` diverse views, check every move as
 capture does (``--dry-run`` stops there), move, settle, grab and record each view into an MCAP
 calibration recording, then calibrate and write the mount file. ``--from CALIB.mcap`` redoes
-the computation on a recorded session without moving anything. See docs/calibration.md.
+the computation on a recorded session without moving anything. ``--images GLOB --poses FILE``
+calibrates images and arm poses recorded elsewhere (it writes a calibration recording of them
+first, so ``--from`` works on it). See docs/calibration.md.
 """
 
 from __future__ import annotations
@@ -26,19 +28,20 @@ from armstereo.calibration.checks import MIN_VIEWS
 from armstereo.calibration.report import report_lines
 from armstereo.calibration.session import calibrate_recording, calibration_metadata
 from armstereo.calibration.views import MAX_VIEWS, ViewPlanSettings
-from armstereo.capture.kinematics import choose_kinematics
 from armstereo.capture.plan import CaptureSettings, Workspace
 from armstereo.capture.run import model_metadata
 from armstereo.capture.session import capture_to_file, confirm_live_motion
 from armstereo.capture.view_tour import tour_settings
 from armstereo.cli import args as args_
 from armstereo.cli.backend_flags import BackendChoice, add_backend_flags, backend_choice
+from armstereo.cli.calibrate_import_cmd import add_import_flags, import_requested, run_import
 from armstereo.cli.capture_cmd import add_motion_flags, ask_to_move
 from armstereo.devices import MotionLimits
 from armstereo.errors import ArmstereoError, ConfigError
 from armstereo.io.files import write_text_atomic
 from armstereo.mount import CameraMount
 from armstereo.robot.model_file import load_arm_model
+from armstereo.robot.source import choose_kinematics
 
 log = logging.getLogger("armstereo.calibrate")
 
@@ -80,6 +83,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="roll about the optical axis (deg, default 60)")
     p.add_argument("--workspace", default=None,
                    help="base-frame box xmin,xmax,ymin,ymax,zmin,zmax (m) the moves must stay in")
+    add_import_flags(p)
     p.set_defaults(func=run)
 
 
@@ -92,6 +96,8 @@ def parse_board_arg(text: str) -> Board:
 
 
 def run(args: argparse.Namespace) -> int:
+    if import_requested(args):
+        return run_import(args, _output_path, _print_result)
     if args.from_recording is not None:
         return _run_offline(args)
     return _run_live(args)

@@ -9,7 +9,6 @@ from pathlib import Path
 
 from armstereo import backends
 from armstereo.capture import CaptureSettings, Workspace, plan_capture
-from armstereo.capture.kinematics import choose_kinematics
 from armstereo.capture.plan import MAX_BASELINE_M, MAX_PAIRS, MAX_SETTLE_S, parse_direction
 from armstereo.capture.run import CaptureResult, model_metadata
 from armstereo.capture.session import capture_to_file, confirm_live_motion
@@ -17,9 +16,10 @@ from armstereo.cli import args as args_
 from armstereo.cli.backend_flags import BackendChoice, add_backend_flags, backend_choice
 from armstereo.devices import MAX_LINEAR_ACCELERATION, MAX_LINEAR_SPEED, MotionLimits
 from armstereo.errors import ConfigError
-from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
+from armstereo.robot.arm_model import ArmModel
 from armstereo.robot.model_file import load_arm_model
+from armstereo.robot.source import choose_kinematics
 
 log = logging.getLogger("armstereo.capture")
 

@@ -7,6 +7,7 @@ import logging
 from pathlib import Path
 
 from armstereo.cli import args as args_
+from armstereo.cli.matcher_flags import add_matcher_flags, matcher_from_args
 from armstereo.epipolar.selfcheck import check_pair
 from armstereo.errors import ArmstereoError, ConfigError, RecordingError, StereoError
 from armstereo.io.files import output_folder
@@ -19,7 +20,7 @@ from armstereo.photometric.correct import (
 )
 from armstereo.reconstruct.outputs import write_outputs
 from armstereo.reconstruct.pipeline import reconstruct_pair
-from armstereo.reconstruct.stereo import METHODS
+from armstereo.reconstruct.stereo_options import METHODS
 from armstereo.reconstruct.window import check_range
 from armstereo.recording import Recording
 from armstereo.recording.remount import remounted
@@ -60,11 +61,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="reconstruct as if the camera had this mount (e.g. one written by "
                    "armstereo calibrate after the capture): its hand-eye transform, intrinsics "
                    "and vignetting replace the recorded ones")
-    p.add_argument("--photo-check", type=args_.non_negative("grey levels", cap=255.0),
-                   default=0.0, metavar="G",
-                   help="birchfield: near depth jumps, drop matches whose views differ by more "
-                   "than G grey levels (against foreground fattening; for clean, evenly lit "
-                   "images; about 4; default 0 = off)")
+    add_matcher_flags(p, names=("photo_check",), help_prefix="birchfield: ")
     p.set_defaults(func=run)
 
 
@@ -98,12 +95,6 @@ def _select(rec: Recording, which: str) -> list:
     return chosen
 
 
-def _stereo_options(args: argparse.Namespace) -> dict:
-    if args.method == "birchfield" and args.photo_check > 0:
-        return {"photo_check": args.photo_check}
-    return {}
-
-
 def run(args: argparse.Namespace) -> int:
     path = args.recording
     max_disparity = _max_disparity(args.max_disparity)
@@ -131,7 +122,7 @@ def run(args: argparse.Namespace) -> int:
             try:
                 recon = reconstruct_pair(pair, method=args.method, max_disparity=max_disparity,
                                          near=args.near, far=args.far,
-                                         stereo_options=_stereo_options(args),
+                                         stereo=matcher_from_args(args, args.method),
                                          photometric=photometric)
             except (RecordingError, StereoError) as err:
                 if len(pairs) == 1:

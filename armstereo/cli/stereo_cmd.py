@@ -11,16 +11,11 @@ import cv2
 import numpy as np
 
 from armstereo.cli import args as args_
+from armstereo.cli.matcher_flags import add_matcher_flags, matcher_from_args
 from armstereo.errors import ConfigError
 from armstereo.io.disparity import DISPARITY_SUFFIXES, write_disparity
 from armstereo.io.images import colorize_disparity, write_png
-from armstereo.reconstruct.stereo import (
-    COLOR_MODES,
-    METHODS,
-    OCCLUSION_MODES,
-    SUBPIXEL_MODES,
-    compute_disparity,
-)
+from armstereo.reconstruct.stereo import METHODS, disparity
 
 log = logging.getLogger(__name__)
 
@@ -45,24 +40,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="smallest disparity searched (default 0)")
     p.add_argument("--colorized", metavar="VIEW.png", default=None,
                    help="also write a colour view of the disparity with a legend")
-    bt = p.add_argument_group("birchfield options")
-    bt.add_argument("--color", choices=COLOR_MODES, default="gray",
-                    help="grey matching (default) or per-channel costs summed / maximum")
-    bt.add_argument("--occlusions", choices=OCCLUSION_MODES, default="nan",
-                    help="nan: no disparity where a nearer surface hides the pixel (default); "
-                    "fill: the paper's background fill")
-    bt.add_argument("--subpixel", choices=SUBPIXEL_MODES, default="fast",
-                    help="subpixel refinement (default fast)")
-    bt.add_argument("--lr-check", action="store_true",
-                    help="reject pixels failing a left-right consistency check (twice the time)")
-    bt.add_argument("--no-postprocess", action="store_true",
-                    help="raw scanline result, without the paper's propagation across rows")
-    bt.add_argument("--photo-check", type=args_.non_negative("grey levels", cap=255.0),
-                    default=0.0, metavar="G",
-                    help="near depth jumps, drop matches whose views differ by more than G "
-                    "grey levels (against foreground fattening; clean images; default 0 = off)")
-    bt.add_argument("--threads", type=args_.whole(1, 256), default=None, metavar="K",
-                    help="match and filter on K threads (default: all cores; same map)")
+    # the matcher's flags, generated from BirchfieldOptions' fields (their order there)
+    add_matcher_flags(p.add_argument_group("birchfield options"),
+                      names=("color", "occlusions", "subpixel", "lr_check", "postprocess",
+                             "photo_check", "threads"))
     p.set_defaults(func=run)
 
 
@@ -93,20 +74,12 @@ def _check_args(args: argparse.Namespace) -> None:
         raise ConfigError(f"--threads must be at least 1, got {args.threads}")
 
 
-def _options(args: argparse.Namespace) -> dict:
-    if args.method != "birchfield":
-        return {}
-    return dict(color=args.color, occlusions=args.occlusions, subpixel=args.subpixel,
-                lr_check=args.lr_check, postprocess=not args.no_postprocess,
-                threads=args.threads, photo_check=args.photo_check)
-
-
 def run(args: argparse.Namespace) -> int:
     _check_args(args)  # before the (possibly long) matching
     left, right = read_image(args.left), read_image(args.right)
     t0 = time.perf_counter()
-    disp = compute_disparity(left, right, args.max_disparity, method=args.method,
-                             min_disparity=args.min_disparity, **_options(args))
+    disp = disparity(left, right, args.max_disparity, matcher_from_args(args, args.method),
+                     min_disparity=args.min_disparity)
     elapsed = time.perf_counter() - t0
     write_disparity(args.out, disp)
     H, W = disp.shape

@@ -26,7 +26,6 @@ from armstereo.apps.sweep import (
     write_scene_csv,
 )
 from armstereo.capture import CaptureSettings, plan_capture
-from armstereo.capture.kinematics import choose_kinematics
 from armstereo.capture.plan import MAX_BASELINE_M
 from armstereo.capture.run import model_metadata
 from armstereo.capture.session import capture_to_file, confirm_live_motion
@@ -36,11 +35,12 @@ from armstereo.cli.capture_cmd import add_motion_flags, ask_to_move
 from armstereo.devices import MotionLimits
 from armstereo.errors import ConfigError
 from armstereo.io.files import output_folder
-from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
 from armstereo.reconstruct.pipeline import reconstruct_pair
 from armstereo.recording import Recording
+from armstereo.robot.arm_model import ArmModel
 from armstereo.robot.model_file import load_arm_model
+from armstereo.robot.source import choose_kinematics
 
 log = logging.getLogger("armstereo.sweep")
 

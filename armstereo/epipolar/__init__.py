@@ -5,6 +5,8 @@ Modules (each with one job):
 * :mod:`~armstereo.epipolar.features`: Harris + NCC, SIFT and ORB matches.
 * :mod:`~armstereo.epipolar.fundamental`: ``estimate_fundamental(x1, x2, method)`` and
   ``fundamental_from_poses(K1, K2, T_base_cam1, T_base_cam2)``; degeneracy checks.
+* :mod:`~armstereo.epipolar.linear`: the normalised 8-point algorithm and the inlier refit
+  every estimator shares.
 * :mod:`~armstereo.epipolar.sampling`, :mod:`~armstereo.epipolar.gold`: MLESAC/MAPSAC and the
   Gold Standard, which OpenCV lacks.
 * :mod:`~armstereo.epipolar.metrics`: Sampson, symmetric epipolar and reprojection errors.

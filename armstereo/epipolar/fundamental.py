@@ -7,8 +7,9 @@ arrays, with ``x2^T F x1 = 0``, ``F`` rank 2 and of unit Frobenius norm. The met
 ``8point``    Hartley-normalised 8-point least squares on all points (no outlier rejection).
 ``ransac``    OpenCV's RANSAC (7-point samples, inlier count), then the normalised 8-point
               refit on the inliers (H&Z algorithm 11.4; OpenCV alone skips it).
-``lmeds``     OpenCV's least median of squares (needs no threshold to find the matrix, breaks
-              down at 50 % outliers), refitted on the inliers like ``ransac``.
+``lmeds``     least median of squares (needs no threshold to find the matrix, breaks down at
+              50 % outliers): OpenCV's and our own sampling loop as starts, each polished by
+              the Gold Standard; the one with most inliers wins (lmeds.py).
 ``mlesac``    Torr & Zisserman's MLESAC: 7-point samples scored by the likelihood of a Gaussian
               inlier / uniform outlier mixture whose mixing weight is found by EM.
 ``mapsac``    Torr's MAPSAC in its usual form, a truncated-quadratic (MSAC) score.
@@ -33,21 +34,32 @@ import cv2
 import numpy as np
 
 from armstereo.epipolar.errors import DegenerateError, EpipolarError
+from armstereo.epipolar.linear import (
+    MIN_CORRESPONDENCES,
+    OPENCV_FLAGS,
+    eight_point,
+    opencv_fundamental,
+    refit_on_inliers,
+)
 from armstereo.epipolar.metrics import sampson_distance
 from armstereo.epipolar.projective import (
     apply,
     as_pairs,
     check_camera_matrix,
     check_pose,
-    enforce_rank2,
-    hartley_normalization,
     normalized,
     skew,
 )
+from armstereo.epipolar.sampling import consensus
+
+__all__ = [
+    "DEFAULT_CONFIDENCE", "DEFAULT_MAX_ITERS", "DEFAULT_THRESHOLD_PX", "METHODS",
+    "MIN_CORRESPONDENCES", "ROBUST_METHODS", "check_not_degenerate", "eight_point",
+    "estimate_fundamental", "fundamental_from_poses", "off_plane_count", "refit_on_inliers",
+]
 
 METHODS = ("8point", "ransac", "lmeds", "mlesac", "mapsac", "magsac", "gold")
 ROBUST_METHODS = tuple(m for m in METHODS if m != "8point")
-MIN_CORRESPONDENCES = 8
 DEFAULT_THRESHOLD_PX = 1.0  # inlier threshold on the Sampson distance (about 2 sigma at 0.5 px)
 DEFAULT_CONFIDENCE = 0.999
 DEFAULT_MAX_ITERS = 5000
@@ -59,11 +71,7 @@ MIN_OFF_PLANE_SHARE = 0.05
 # Enough samples to find a plane holding 40 % of the points (at 99.9 %); a plane holding fewer
 # leaves well over MIN_OFF_PLANE_SHARE of the points off it anyway.
 HOMOGRAPHY_MAX_ITERS = 300
-# The 8-point system must have a one-dimensional null space: its second smallest singular
-# value (normalised coordinates) must exceed this share of the largest one.
-MIN_SINGULAR_RATIO = 1e-9
 
-_OPENCV_FLAGS = {"ransac": cv2.FM_RANSAC, "lmeds": cv2.FM_LMEDS, "magsac": cv2.USAC_MAGSAC}
 
 
 def estimate_fundamental(x1: np.ndarray, x2: np.ndarray, method: str, *,
@@ -75,9 +83,10 @@ def estimate_fundamental(x1: np.ndarray, x2: np.ndarray, method: str, *,
 
     Returns ``(F, inlier_mask)``: F (3x3, rank 2, unit norm, ``x2^T F x1 = 0``) and an ``(N,)``
     bool mask (Sampson distance below ``threshold`` px). ``seed`` fixes the sampling of the
-    methods implemented here (``mlesac``, ``mapsac``, the ``gold`` start); OpenCV's own sampling
-    is deterministic. Raises EpipolarError for malformed input or an unknown method and
-    DegenerateError when the points do not determine F (see the module doc).
+    methods implemented here (``mlesac``, ``mapsac``, ``lmeds``' own loop, the ``gold``
+    start); OpenCV's own sampling is deterministic. Raises EpipolarError for malformed input
+    or an unknown method and DegenerateError when the points do not determine F (see the
+    module doc).
     """
     x1, x2 = as_pairs(x1, x2)
     _check_options(method, threshold, confidence, max_iters)
@@ -87,13 +96,16 @@ def estimate_fundamental(x1: np.ndarray, x2: np.ndarray, method: str, *,
     if method == "8point":
         F = eight_point(x1, x2)
     elif method == "magsac":  # MAGSAC++ ends with its own weighted least-squares fit
-        F = _opencv(x1, x2, method, threshold, confidence, max_iters)
-    elif method in _OPENCV_FLAGS:
-        F = refit_on_inliers(_opencv(x1, x2, method, threshold, confidence, max_iters),
+        F = opencv_fundamental(x1, x2, method, threshold, confidence, max_iters)
+    elif method == "lmeds":
+        from armstereo.epipolar.lmeds import lmeds_fundamental
+
+        F = lmeds_fundamental(x1, x2, threshold=threshold, confidence=confidence,
+                              max_iters=max_iters, seed=seed)
+    elif method in OPENCV_FLAGS:
+        F = refit_on_inliers(opencv_fundamental(x1, x2, method, threshold, confidence, max_iters),
                              x1, x2, threshold)
     elif method in ("mlesac", "mapsac"):
-        from armstereo.epipolar.sampling import consensus
-
         F = consensus(x1, x2, method, threshold=threshold, confidence=confidence,
                       max_iters=max_iters, seed=seed)
     else:
@@ -111,7 +123,7 @@ def _gold(x1: np.ndarray, x2: np.ndarray, threshold: float, confidence: float,
     """Gold Standard refinement of the MAGSAC++ estimate on its inliers."""
     from armstereo.epipolar.gold import gold_standard
 
-    F0 = _opencv(x1, x2, "magsac", threshold, confidence, max_iters)
+    F0 = opencv_fundamental(x1, x2, "magsac", threshold, confidence, max_iters)
     start = sampson_distance(F0, x1, x2) < threshold
     if start.sum() < MIN_CORRESPONDENCES:
         raise DegenerateError(f"only {int(start.sum())} correspondences fit the robust start "
@@ -130,64 +142,6 @@ def _check_options(method: str, threshold: float, confidence: float, max_iters: 
         raise EpipolarError(f"confidence must lie in (0, 1), got {confidence}")
     if int(max_iters) < 1:
         raise EpipolarError(f"max_iters must be >= 1, got {max_iters}")
-
-
-def eight_point(x1: np.ndarray, x2: np.ndarray) -> np.ndarray:
-    """Hartley-normalised 8-point algorithm on all ``(N, 2)`` pairs (N >= 8), rank 2 enforced.
-
-    Raises DegenerateError when the linear system does not single out one matrix (fewer than 8
-    independent equations, e.g. collinear or exactly planar-and-rotating configurations).
-    """
-    x1, x2 = as_pairs(x1, x2)
-    if len(x1) < MIN_CORRESPONDENCES:
-        raise DegenerateError(f"the 8-point algorithm needs at least {MIN_CORRESPONDENCES} "
-                              f"correspondences, got {len(x1)}")
-    T1, T2 = hartley_normalization(x1), hartley_normalization(x2)
-    n1, n2 = apply(T1, x1), apply(T2, x2)
-    A = np.column_stack([n2[:, :1] * n1, n2[:, :1], n2[:, 1:] * n1, n2[:, 1:], n1,
-                         np.ones(len(n1))])
-    _, s, Vt = np.linalg.svd(A, full_matrices=False)
-    if len(s) < 9 or s[-2] <= MIN_SINGULAR_RATIO * s[0]:
-        raise DegenerateError("the correspondences do not single out one fundamental matrix "
-                              "(the 8-point system has more than one solution)")
-    Fn = enforce_rank2(Vt[-1].reshape(3, 3))
-    return normalized(T2.T @ Fn @ T1)
-
-
-def refit_on_inliers(F: np.ndarray, x1: np.ndarray, x2: np.ndarray, threshold: float,
-                     rounds: int = 3) -> np.ndarray:
-    """Re-estimate F by the 8-point algorithm on its inliers (Sampson < ``threshold`` px).
-
-    Repeated while the inlier set grows, at most ``rounds`` times. Raises DegenerateError when
-    fewer than 8 correspondences support F.
-    """
-    mask = sampson_distance(F, x1, x2) < threshold
-    for _ in range(rounds):
-        if mask.sum() < MIN_CORRESPONDENCES:
-            break
-        F_new = eight_point(x1[mask], x2[mask])
-        new_mask = sampson_distance(F_new, x1, x2) < threshold
-        if new_mask.sum() < mask.sum():
-            break
-        F, done, mask = F_new, bool(np.array_equal(new_mask, mask)), new_mask
-        if done:
-            break
-    if mask.sum() < MIN_CORRESPONDENCES:
-        raise DegenerateError(f"only {int(mask.sum())} correspondences support the estimate "
-                              f"within {threshold:g} px; need {MIN_CORRESPONDENCES}")
-    return F
-
-
-def _opencv(x1: np.ndarray, x2: np.ndarray, method: str, threshold: float, confidence: float,
-            max_iters: int) -> np.ndarray:
-    """One of OpenCV's robust estimators; raises DegenerateError when it finds nothing."""
-    F, _ = cv2.findFundamentalMat(x1.astype(np.float64), x2.astype(np.float64),
-                                  _OPENCV_FLAGS[method], float(threshold), float(confidence),
-                                  int(max_iters))
-    if F is None or F.shape != (3, 3) or not np.all(np.isfinite(F)):
-        raise DegenerateError(f"OpenCV's {method} found no fundamental matrix for these "
-                              f"{len(x1)} correspondences")
-    return enforce_rank2(F)
 
 
 def check_not_degenerate(x1: np.ndarray, x2: np.ndarray, threshold: float) -> None:

@@ -1,10 +1,12 @@
-"""MLESAC and MAPSAC: random 7-point samples scored by a robust cost (Torr & Zisserman).
+"""MLESAC, MAPSAC and LMedS: random 7-point samples scored by a robust cost (Torr & Zisserman).
 
 OpenCV has neither score, so the sample-and-score loop lives here; the minimal solver is
 OpenCV's 7-point algorithm (up to three real solutions per sample).
 
 * ``mapsac`` scores a hypothesis by ``sum(min(e_i^2, T^2))`` over the Sampson distances
   ``e_i``: the truncated quadratic of MSAC, which is how Torr's MAPSAC is used in practice.
+* ``lmeds`` scores it by the median squared Sampson distance (least median of squares; the
+  loop of :mod:`armstereo.epipolar.lmeds`).
 * ``mlesac`` scores it by the negative log-likelihood of a mixture: inliers Gaussian with
   sigma = ``T / INLIER_SIGMAS`` (px), outliers uniform over the image span ``v`` (px); the
   inlier share ``gamma`` is re-estimated per hypothesis by a few EM steps.
@@ -24,7 +26,7 @@ import cv2
 import numpy as np
 
 from armstereo.epipolar.errors import DegenerateError
-from armstereo.epipolar.fundamental import eight_point, refit_on_inliers
+from armstereo.epipolar.linear import eight_point, refit_on_inliers
 from armstereo.epipolar.metrics import sampson_homogeneous
 from armstereo.epipolar.projective import homogeneous
 
@@ -36,12 +38,12 @@ LO_ROUNDS = 5
 LO_THRESHOLD_FACTOR = 2.0
 MIN_SAMPLES = 100  # RANSAC's bound assumes every clean sample gives a good F; noisy ones don't
 MIN_LO_POINTS = 16  # the local refit needs clearly more than the 8 points of a minimal fit
-COSTS = ("mlesac", "mapsac")
+COSTS = ("mlesac", "mapsac", "lmeds")
 
 
 def consensus(x1: np.ndarray, x2: np.ndarray, cost: str, *, threshold: float,
               confidence: float, max_iters: int, seed: int = 0) -> np.ndarray:
-    """Best F of ``(N, 2)`` pixel pairs under ``cost`` (``"mlesac"`` or ``"mapsac"``).
+    """Best F of ``(N, 2)`` pixel pairs under ``cost`` (one of :data:`COSTS`).
 
     ``threshold`` (px) is the inlier bound T on the Sampson distance. Raises DegenerateError
     when no sample yields a matrix or fewer than 8 points support the best one.
@@ -101,6 +103,8 @@ def _seven_point(x1: np.ndarray, x2: np.ndarray) -> list[np.ndarray]:
 
 
 def _score(e: np.ndarray, cost: str, threshold: float, span: float) -> float:
+    if cost == "lmeds":  # least median of squares: no threshold in the score
+        return float(np.median(e * e))
     if cost == "mapsac":
         return float(np.sum(np.minimum(e * e, threshold * threshold)))
     sigma = threshold / INLIER_SIGMAS

@@ -48,7 +48,7 @@ from armstereo import __version__
 from armstereo.errors import RecordingError
 from armstereo.fusion.mesh import Mesh
 from armstereo.io.files import write_bytes_atomic
-from armstereo.recording.writer import POINT_DTYPE, POINT_STRIDE
+from armstereo.recording.messages import POINT_DTYPE, POINT_STRIDE
 from armstereo.transforms import quaternion_xyzw
 
 TOPIC_MESH = "/fusion/mesh"

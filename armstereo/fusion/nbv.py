@@ -51,7 +51,7 @@ from armstereo.capture.tour import baseline_leg, check_legs, joint_leg
 from armstereo.errors import ArmstereoError, ConfigError
 from armstereo.frame import Frame
 from armstereo.fusion.tsdf import DepthFrame, Roi, TsdfVolume
-from armstereo.kinematics import ArmModel
+from armstereo.robot.arm_model import ArmModel
 
 log = logging.getLogger(__name__)
 

@@ -15,6 +15,7 @@ seen by one pair only stays in the mesh but not in the cloud), ``fusion.mcap`` (
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import math
@@ -42,6 +43,12 @@ from armstereo.fusion.roi import auto_roi, check_roi_seen, frame_points
 from armstereo.fusion.tsdf import DepthFrame, Roi, TsdfVolume
 from armstereo.io.ply import write_ply
 from armstereo.photometric.correct import as_options, for_recording
+from armstereo.reconstruct.stereo_options import (
+    BirchfieldOptions,
+    StereoOptions,
+    matcher_record,
+    resolve_matcher,
+)
 from armstereo.recording import Recording
 from armstereo.recording.remount import remounted
 
@@ -72,17 +79,21 @@ class FusionOptions:
     reconstruct in this process (more: worker processes, started with ``spawn``, so a script
     calling this needs the ``if __name__ == "__main__":`` guard); ``depth_source`` ``truth``
     fuses the mock camera's ground-truth depth instead of stereo (a plumbing check);
-    ``score`` False skips scoring against scene truth; ``stereo_options`` go to the matcher
-    (e.g. ``{"photo_check": CLEAN_PHOTO_CHECK}`` for clean mock views); ``photometric``: what
-    is corrected before matching (True, False or ``armstereo.photometric.PhotometricOptions``;
-    the vignetting model is the recording's mount file's); ``mount`` (a CameraMount)
-    reconstructs every pair as if the camera had that mount instead of the recorded one
-    (:mod:`armstereo.recording.remount`; its vignetting then applies)."""
+    ``score`` False skips scoring against scene truth; ``stereo`` says how each pair is
+    matched (:class:`~armstereo.reconstruct.stereo_options.BirchfieldOptions`, e.g.
+    ``BirchfieldOptions(photo_check=CLEAN_PHOTO_CHECK)`` for clean mock views, or
+    ``SgbmOptions``), or ``method`` (None: ``stereo``'s, else "birchfield") with the older
+    ``stereo_options`` dict of the matcher's keywords (:attr:`matcher` resolves them);
+    ``photometric``: what is corrected before matching (True, False or
+    ``armstereo.photometric.PhotometricOptions``; the vignetting model is the recording's
+    mount file's); ``mount`` (a CameraMount) reconstructs every pair as if the camera had that
+    mount instead of the recorded one (:mod:`armstereo.recording.remount`; its vignetting then
+    applies)."""
 
     voxel: float = DEFAULT_VOXEL_M
     trunc: float | None = None
     roi: Roi | None = None
-    method: str = "birchfield"
+    method: str | None = None
     depth_source: str = "stereo"
     workers: int | None = None
     min_views: int = DEFAULT_MIN_VIEWS
@@ -90,8 +101,19 @@ class FusionOptions:
     score: bool = True
     seed: int = 0
     stereo_options: dict | None = None
+    stereo: StereoOptions | None = None
     photometric: Any = True
     mount: Any = None
+
+    def __post_init__(self) -> None:
+        if self.method is None:  # frozen: set once, here
+            object.__setattr__(self, "method", getattr(self.stereo, "method", "birchfield"))
+
+    @property
+    def matcher(self) -> StereoOptions:
+        """How each pair is matched; ConfigError for an unknown method, options of another
+        method or both kinds of options."""
+        return resolve_matcher(self.method, self.stereo, self.stereo_options, error=ConfigError)
 
     @property
     def trunc_m(self) -> float:
@@ -178,7 +200,8 @@ def fuse_recording(recording: str | Path, out_dir: str | Path,
     with _timed(timings, "write"):
         _write(paths, mesh, cloud, cloud_colors, results,
                {"source": str(recording), "pairs": str(len(results)),
-                "voxel_m": repr(options.voxel), "roi_m": str(roi)})
+                "voxel_m": repr(options.voxel), "roi_m": str(roi),
+                "matcher": json.dumps(report["matcher"])})
     if truth is not None and options.score:
         with _timed(timings, "score"):
             report["accuracy"] = _score(truth, pairs, roi, mesh, cloud, results, options)
@@ -226,6 +249,7 @@ def _check_options(o: FusionOptions) -> None:
         raise ConfigError(f"workers must be >= 1, got {o.workers}")
     if o.min_views < 1:
         raise ConfigError(f"min_views must be >= 1, got {o.min_views}")
+    o.matcher  # noqa: B018  (the matcher's options are checked as they are resolved)
 
 
 def _output_dir(out_dir: str | Path) -> Path:
@@ -341,11 +365,10 @@ def _pair_job(rec: Recording, k: int, o: FusionOptions, threads: int | None = No
         photometric: dict = {}
         left, right = pair.left, pair.right
     else:
-        stereo = dict(o.stereo_options or {})
-        if threads is not None:
-            stereo["threads"] = threads
-        recon = reconstruct_pair(pair, method=o.method, stereo_options=stereo,
-                                 photometric=_photometric(o, rec))
+        stereo = o.matcher
+        if threads is not None and isinstance(stereo, BirchfieldOptions):
+            stereo = dataclasses.replace(stereo, threads=threads)
+        recon = reconstruct_pair(pair, stereo=stereo, photometric=_photometric(o, rec))
         frame = frame_from_reconstruction(recon)
         pts = recon.points_base
         timings = dict(recon.timings_s)
@@ -389,7 +412,9 @@ def _report(rec: Recording, o: FusionOptions, roi: Roi, roi_source: str, volume:
         "views": len(results), "voxel_m": o.voxel, "trunc_m": o.trunc_m,
         "behind_m": o.behind_m,
         "roi_m": roi.as_list(), "roi_source": roi_source, "depth_source": o.depth_source,
-        "method": o.method if o.depth_source == "stereo" else None, "workers": workers,
+        "method": o.method if o.depth_source == "stereo" else None,
+        "matcher": matcher_record(o.matcher) if o.depth_source == "stereo" else None,
+        "workers": workers,
         "voxels": volume.voxel_count, "voxel_grid": list(volume.shape),
         "observed_voxels": int(np.count_nonzero(volume.weight)),
         "mesh": {"vertices": len(mesh.vertices), "faces": len(mesh), "area_m2": mesh.area()},

@@ -15,7 +15,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from armstereo.reconstruct.birchfield.jit import njit
+from armstereo.reconstruct.birchfield.common.jit import njit
 from armstereo.reconstruct.strips import each_strip
 
 CONSENSUS_LEVELS = 254  # distinct disparity codes of the consensus median (uint8, 0 = NaN)

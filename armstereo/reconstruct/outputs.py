@@ -6,6 +6,7 @@ Every file is written atomically (a killed run leaves old files or none, never h
 
 from __future__ import annotations
 
+import json
 import time
 from pathlib import Path
 
@@ -16,6 +17,7 @@ from armstereo.frame import Frame
 from armstereo.io.images import depth_error_map, side_by_side, write_depth_png, write_png
 from armstereo.io.ply import write_ply
 from armstereo.reconstruct.pipeline import PairReconstruction
+from armstereo.reconstruct.stereo_options import matcher_record
 from armstereo.recording import RecordingWriter
 from armstereo.recording import schemas as S
 
@@ -71,7 +73,8 @@ def write_reconstruction_mcap(recon: PairReconstruction, path: str | Path, *,
     """An MCAP that Foxglove shows as arm + camera + cloud, and that reads back as a recording.
 
     ``metadata`` (str -> str, e.g. the source recording's robot and URDF hash) is stored with
-    the reconstruction's own keys (kind, pair, method, depth range, ...), which take precedence.
+    the reconstruction's own keys (kind, pair, method, depth range, ..., ``matcher``: the JSON
+    of :func:`~armstereo.reconstruct.stereo_options.matcher_record`), which take precedence.
 
     Holds the calibration, both source views as recorded (image, ground-truth depth, /tf,
     joints, the pair event), the cloud on ``/points`` (base frame), the estimated depth of the
@@ -85,7 +88,8 @@ def write_reconstruction_mcap(recon: PairReconstruction, path: str | Path, *,
             "method": recon.method, "left_view": str(recon.left_view),
             "near_m": f"{recon.window.near:.6g}", "far_m": f"{recon.window.far:.6g}",
             "max_disparity": str(recon.window.max_disparity),
-            "points": str(len(recon.points_base))}
+            "points": str(len(recon.points_base)),
+            "matcher": json.dumps(matcher_record(recon.stereo))}
     left = pair.right if recon.swapped else pair.left
     with RecordingWriter(path, metadata=meta) as w:
         w.write_calibration(left.intrinsics, min(int(v.timestamp_ns) for v in views))

@@ -15,6 +15,7 @@ import numpy as np
 
 from armstereo.errors import RecordingError
 from armstereo.photometric.correct import PhotometricOptions
+from armstereo.reconstruct.stereo_options import StereoOptions
 from armstereo.reconstruct.views import Reconstruction, reconstruct_views
 from armstereo.recording import Pair
 
@@ -58,13 +59,16 @@ def _view_inputs(pair: Pair, which: str):
     return image, intr, np.asarray(T, dtype=float)
 
 
-def reconstruct_pair(pair: Pair, *, method: str = "birchfield", max_disparity: int | str = "auto",
-                     near: float | None = None, far: float | None = None,
-                     stereo_options: dict | None = None,
+def reconstruct_pair(pair: Pair, *, method: str | None = None,
+                     max_disparity: int | str = "auto", near: float | None = None,
+                     far: float | None = None, stereo_options: dict | None = None,
+                     stereo: StereoOptions | None = None,
                      photometric: bool | PhotometricOptions = True) -> PairReconstruction:
     """Rectify, match and triangulate one recorded pair (``armstereo.recording.Pair``);
-    ``max_disparity`` is the matcher's budget ("auto" or a number of labels). ``photometric``
-    as :func:`armstereo.reconstruct.views.reconstruct_views` takes it; the camera's vignetting
+    ``max_disparity`` is the matcher's budget ("auto" or a number of labels); ``stereo`` (an
+    options object) or ``method`` and ``stereo_options`` say how to match, as
+    :func:`~armstereo.reconstruct.views.reconstruct_views` takes them. ``photometric`` as
+    :func:`~armstereo.reconstruct.views.reconstruct_views` takes it; the camera's vignetting
     is the options' model (``armstereo.photometric.correct.for_recording(photometric,
     recording.metadata)`` takes it from the recording's mount file).
 
@@ -78,7 +82,7 @@ def reconstruct_pair(pair: Pair, *, method: str = "birchfield", max_disparity: i
     recon = reconstruct_views(img1, img2, intr1.K, intr2.K, T1, T2, dist1=intr1.dist,
                               dist2=intr2.dist, method=method, near=near, far=far,
                               disparity_budget=max_disparity, stereo_options=stereo_options,
-                              photometric=photometric)
+                              stereo=stereo, photometric=photometric)
     left, right = (pair.right, pair.left) if recon.swapped else (pair.left, pair.right)
     fields = {f: getattr(recon, f) for f in Reconstruction.__dataclass_fields__}
     fields["timings_s"] = {"decode": decode_s, **recon.timings_s}

@@ -17,6 +17,11 @@ baseline), so epipolar lines become image rows. Conventions used here:
   other one lies at an image-plane angle in (-90, 90] deg, so the rectified images are rotated
   by at most 90 deg (a vertical baseline gives images rotated by 90 deg; rows are still the
   epipolar lines and the matcher runs along rows).
+
+:class:`RectificationPlan` checks a pair's poses and solves its rectification once; its
+:meth:`~RectificationPlan.geometry` and :meth:`~RectificationPlan.rectify` (what
+:func:`rectified_geometry` and :func:`rectify_pair` run) reuse it. The results' types are in
+:mod:`.rectified`.
 """
 
 from __future__ import annotations
@@ -24,29 +29,20 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass, replace
-from typing import NamedTuple
 
 import cv2
 import numpy as np
 
 from armstereo.camera_model import Intrinsics
 from armstereo.errors import StereoError
-from armstereo.transforms import as_rigid, invert, make_T
+from armstereo.reconstruct.rectified import Rectification, RectifiedPair, StereoGeometry
+from armstereo.transforms import as_rigid, invert
 
 log = logging.getLogger(__name__)
 
 MIN_BASELINE_ANGLE_DEG = 5.0  # below this angle to the optical axis the problem is degenerate
 MAX_CANVAS_SCALE = 1.5  # rectified canvas sides are capped at this multiple of the input's
 MAP_TOLERANCE = 1e-3  # px: float32 maps land a hair outside the image on its border
-
-
-class Rectification(NamedTuple):
-    """Rectifying homographies (original pixel -> rectified pixel) and rectified 3x4 PPMs."""
-
-    H1: np.ndarray
-    H2: np.ndarray
-    P1: np.ndarray
-    P2: np.ndarray
 
 
 # ----------------------------------------------------------------------------------------------
@@ -269,63 +265,8 @@ def fusiello(P1: np.ndarray, P2: np.ndarray, *, image_size: tuple[int, int] | No
 
 
 # ----------------------------------------------------------------------------------------------
-# Geometry of a rectified pair (what triangulation needs)
+# Geometry of a rectified pair (what triangulation needs: :class:`.rectified.StereoGeometry`)
 # ----------------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class StereoGeometry:
-    """A rectified pair in metres and pixels; frame of reference: rectified left camera.
-
-    ``R_rect`` rotates base-frame vectors into the rectified cameras' frame; ``c_left`` and
-    ``c_right`` are the optical centres in ``base``. Disparity ``d = x_left - x_right`` relates to
-    depth by ``Z = fx * baseline / (d - disparity_offset)``.
-    """
-
-    fx: float
-    fy: float
-    cx_left: float
-    cx_right: float
-    cy: float
-    baseline: float
-    size: tuple[int, int]
-    R_rect: np.ndarray
-    c_left: np.ndarray
-    c_right: np.ndarray
-
-    @property
-    def disparity_offset(self) -> float:
-        """``cx_left - cx_right``: the disparity of a point at infinity (pixels)."""
-        return self.cx_left - self.cx_right
-
-    @property
-    def K_left(self) -> np.ndarray:
-        return np.array([[self.fx, 0, self.cx_left], [0, self.fy, self.cy], [0, 0, 1.0]])
-
-    @property
-    def T_base_rectleft(self) -> np.ndarray:
-        """Pose of the rectified left camera in ``base`` (4x4)."""
-        return make_T(self.R_rect.T, self.c_left)
-
-    @property
-    def Q(self) -> np.ndarray:
-        """4x4 reprojection: ``Q @ [u, v, d, 1]`` ~ homogeneous point in the rectified-left frame.
-
-        OpenCV's form with Tx = -baseline, its second row generalised to fx != fy.
-        """
-        a = self.fx / self.fy
-        b = self.baseline
-        return np.array([[1.0, 0, 0, -self.cx_left],
-                         [0, a, 0, -self.cy * a],
-                         [0, 0, 0, self.fx],
-                         [0, 0, 1.0 / b, -self.disparity_offset / b]])
-
-    def disparity_window(self, near: float, far: float) -> tuple[float, float]:
-        """Disparities ``(d_min, d_max)`` (pixels) of depths ``far`` and ``near`` (metres)."""
-        if not 0 < near < far:
-            raise StereoError(f"need 0 < near < far, got near={near} far={far}")
-        fb = self.fx * self.baseline
-        return fb / far + self.disparity_offset, fb / near + self.disparity_offset
-
-
 def _geometry(rig: _Rig, size: tuple[int, int]) -> StereoGeometry:
     return StereoGeometry(
         fx=float(rig.An1[0, 0]), fy=float(rig.An1[1, 1]), cx_left=float(rig.An1[0, 2]),
@@ -338,50 +279,6 @@ def _geometry(rig: _Rig, size: tuple[int, int]) -> StereoGeometry:
 # Image-level rectification from poses
 # ----------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
-class RectifiedPair:
-    """Rectified images, validity masks and geometry of a pair, plus where they came from.
-
-    ``left``/``right`` are the rectified images (BGR or grey uint8, as given); masks are True
-    where the pixel was sampled inside the source image. ``swapped`` is True when the second
-    input image became the left one. ``rectification`` holds H/P for (left, right) in that order;
-    ``left_intrinsics``/``T_base_left_camera`` describe the original (unrectified) left camera.
-    ``maps_left``/``maps_right`` are the float32 ``cv2.remap`` maps (rectified pixel -> source).
-    """
-
-    left: np.ndarray
-    right: np.ndarray
-    left_mask: np.ndarray
-    right_mask: np.ndarray
-    geometry: StereoGeometry
-    rectification: Rectification
-    swapped: bool
-    left_intrinsics: Intrinsics
-    T_base_left_camera: np.ndarray
-    maps_left: tuple[np.ndarray, np.ndarray]
-    maps_right: tuple[np.ndarray, np.ndarray]
-    baseline_angle_deg: float  # angle between baseline and the left camera's optical axis
-    rotation_deg: float  # in-plane rotation the rectification applies to the left image
-
-    @property
-    def size(self) -> tuple[int, int]:
-        """Rectified canvas (width, height)."""
-        return self.geometry.size
-
-    @property
-    def baseline(self) -> float:
-        return self.geometry.baseline
-
-    @property
-    def Q(self) -> np.ndarray:
-        return self.geometry.Q
-
-    @property
-    def R_left_cv(self) -> np.ndarray:
-        """Rotation from the original left camera frame to the rectified left camera frame."""
-        return self.geometry.R_rect @ self.T_base_left_camera[:3, :3]
-
-
-@dataclass(frozen=True)
 class _View:
     intrinsics: Intrinsics
     T_base_camera: np.ndarray
@@ -389,10 +286,6 @@ class _View:
     @property
     def ppm(self) -> np.ndarray:
         return self.intrinsics.projection(invert(self.T_base_camera))
-
-
-def _check_pose(T: np.ndarray, name: str) -> np.ndarray:
-    return as_rigid(T, name, error=StereoError)
 
 
 def second_view_is_left(T_base_cam1: np.ndarray, T_base_cam2: np.ndarray) -> bool:
@@ -406,34 +299,103 @@ def second_view_is_left(T_base_cam1: np.ndarray, T_base_cam2: np.ndarray) -> boo
     return not (-90.0 < angle <= 90.0)
 
 
+@dataclass(frozen=True)
+class RectificationPlan:
+    """Two posed views, checked once, with the rectification they share solved once.
+
+    :meth:`from_views` checks both poses, picks the left view (:func:`second_view_is_left`) and
+    solves Fusiello's rotation and new intrinsics, centred (RectifKit); :meth:`geometry` (for
+    a depth range and canvas) and :meth:`rectify` (the images) reuse that. So a caller that
+    first chooses a depth range from the geometry and then rectifies plans the pair once.
+    """
+
+    left: _View
+    right: _View
+    swapped: bool  # True when view 2 is the left one
+    rig: _Rig  # centred, before any depth shift or canvas
+
+    @classmethod
+    def from_views(cls, intrinsics1: Intrinsics, T_base_cam1: np.ndarray,
+                   intrinsics2: Intrinsics, T_base_cam2: np.ndarray, *,
+                   snap: bool = False) -> RectificationPlan:
+        """The plan of views 1 and 2 (``T_base_cam``: camera_optical in base, m). ``snap``:
+        rotations a little off orthonormal are re-orthonormalized (input edges,
+        :func:`armstereo.transforms.as_rigid`). StereoError for a bad pose or a degenerate
+        baseline."""
+        views = [_View(intr, as_rigid(T, f"T_base_cam{i}", error=StereoError, snap=snap))
+                 for i, (intr, T) in enumerate(((intrinsics1, T_base_cam1),
+                                                (intrinsics2, T_base_cam2)), start=1)]
+        swapped = second_view_is_left(views[0].T_base_camera, views[1].T_base_camera)
+        left, right = (views[1], views[0]) if swapped else (views[0], views[1])
+        sizes = (left.intrinsics.size, right.intrinsics.size)
+        return cls(left, right, swapped,
+                   _centre(_solve(left.ppm, right.ppm, square_pixels=True), *sizes))
+
+    @property
+    def left_intrinsics(self) -> Intrinsics:
+        """The original (unrectified) left camera's intrinsics."""
+        return self.left.intrinsics
+
+    @property
+    def T_base_left_camera(self) -> np.ndarray:
+        """The original left camera's checked pose in base (4x4)."""
+        return self.left.T_base_camera
+
+    def geometry(self, *, depth_range: tuple[float, float] | None = None,
+                 out_size: tuple[int, int] | None = None) -> StereoGeometry:
+        """The rectified geometry :meth:`rectify` produces with these arguments."""
+        rig, size = self._fitted(depth_range, out_size)
+        return _geometry(rig, size)
+
+    def rectify(self, image1: np.ndarray, image2: np.ndarray, *,
+                depth_range: tuple[float, float] | None = None,
+                out_size: tuple[int, int] | None = None) -> RectifiedPair:
+        """Rectify the views' images (uint8 grey or BGR, in the order of :meth:`from_views`,
+        each of its intrinsics' size); arguments as :func:`rectify_pair`'s."""
+        images = [_check_image(img, f"image{i}") for i, img in enumerate((image1, image2), 1)]
+        img_l, img_r = images[::-1] if self.swapped else images
+        for img, view, name in ((img_l, self.left, "left"), (img_r, self.right, "right")):
+            if (img.shape[1], img.shape[0]) != view.intrinsics.size:
+                raise StereoError(f"the {name} image is {img.shape[1]}x{img.shape[0]}, its "
+                                  f"calibration {view.intrinsics.width}x"
+                                  f"{view.intrinsics.height}")
+        rig, size = self._fitted(depth_range, out_size)
+        R_l = rig.Rn @ self.left.T_base_camera[:3, :3]
+        maps_l = _remap_maps(self.left, R_l, rig.An1, size)
+        maps_r = _remap_maps(self.right, rig.Rn @ self.right.T_base_camera[:3, :3], rig.An2, size)
+        out_l, mask_l = _warp(img_l, maps_l, self.left.intrinsics.size)
+        out_r, mask_r = _warp(img_r, maps_r, self.right.intrinsics.size)
+        rotation = round(math.degrees(math.atan2(R_l[1, 0], R_l[0, 0])), 9) + 0.0  # no "-0"
+        log.debug("rectified %dx%d, swapped=%s, rotation %.1f deg, baseline %.4f m", *size,
+                  self.swapped, rotation, float(np.linalg.norm(rig.c2 - rig.c1)))
+        return RectifiedPair(out_l, out_r, mask_l, mask_r, _geometry(rig, size),
+                             rig.rectification(), self.swapped, self.left.intrinsics,
+                             self.left.T_base_camera, maps_l, maps_r, rig.angle_deg, rotation)
+
+    def _fitted(self, depth_range: tuple[float, float] | None,
+                out_size: tuple[int, int] | None) -> tuple[_Rig, tuple[int, int]]:
+        """The rig shifted for ``depth_range`` and placed on its canvas, and the canvas size."""
+        rig = self.rig
+        sizes = (self.left.intrinsics.size, self.right.intrinsics.size)
+        if depth_range is not None:
+            # Align the far end of the depth range with disparity 0: the matcher then searches
+            # [0, d(near) - d(far)] and nothing it can represent is wasted.
+            d_far, _ = _geometry(rig, sizes[0]).disparity_window(*depth_range)
+            rig = rig.shifted((0.0, 0.0), (d_far, 0.0))
+        return _fit_canvas(rig, *sizes, stereo_aware=depth_range is not None, out_size=out_size)
+
+
 def rectified_geometry(intrinsics1: Intrinsics, T_base_cam1: np.ndarray,
                        intrinsics2: Intrinsics, T_base_cam2: np.ndarray, *,
                        depth_range: tuple[float, float] | None = None,
                        out_size: tuple[int, int] | None = None) -> tuple[StereoGeometry, bool]:
     """The rectified geometry :func:`rectify_pair` would produce, without touching images.
 
-    Returns ``(geometry, swapped)``. Cheap (a few 3x3 products); used to choose a depth range.
+    Returns ``(geometry, swapped)``. Cheap (a few 3x3 products); used to choose a depth range
+    (a caller that then rectifies too plans once with :class:`RectificationPlan`).
     """
-    rig, size, swapped, _, _ = _plan(intrinsics1, T_base_cam1, intrinsics2, T_base_cam2,
-                                     depth_range, out_size)
-    return _geometry(rig, size), swapped
-
-
-def _plan(intr1: Intrinsics, T1: np.ndarray, intr2: Intrinsics, T2: np.ndarray,
-          depth_range: tuple[float, float] | None, out_size: tuple[int, int] | None):
-    views = [_View(intr1, _check_pose(T1, "T_base_cam1")),
-             _View(intr2, _check_pose(T2, "T_base_cam2"))]
-    swapped = second_view_is_left(views[0].T_base_camera, views[1].T_base_camera)
-    left, right = (views[1], views[0]) if swapped else (views[0], views[1])
-    sizes = (left.intrinsics.size, right.intrinsics.size)
-    rig = _centre(_solve(left.ppm, right.ppm, square_pixels=True), *sizes)
-    if depth_range is not None:
-        # Align the far end of the depth range with disparity 0: the matcher then searches
-        # [0, d(near) - d(far)] and nothing it can represent is wasted.
-        d_far, _ = _geometry(rig, sizes[0]).disparity_window(*depth_range)
-        rig = rig.shifted((0.0, 0.0), (d_far, 0.0))
-    rig, size = _fit_canvas(rig, *sizes, stereo_aware=depth_range is not None, out_size=out_size)
-    return rig, size, swapped, left, right
+    plan = RectificationPlan.from_views(intrinsics1, T_base_cam1, intrinsics2, T_base_cam2)
+    return plan.geometry(depth_range=depth_range, out_size=out_size), plan.swapped
 
 
 def _remap_maps(view: _View, R_cv: np.ndarray, K_new: np.ndarray,
@@ -493,22 +455,9 @@ def rectify_pair(image1: np.ndarray, image2: np.ndarray, K1: np.ndarray, dist1: 
     Raises StereoError for bad images/poses, a degenerate baseline or views that do not overlap.
     """
     image1, image2 = _check_image(image1, "image1"), _check_image(image2, "image2")
-    intr1 = _intrinsics(image1, K1, dist1)
-    intr2 = _intrinsics(image2, K2, dist2)
-    rig, size, swapped, left, right = _plan(intr1, T_base_cam1, intr2, T_base_cam2,
-                                            depth_range, out_size)
-    img_l, img_r = (image2, image1) if swapped else (image1, image2)
-    R_l = rig.Rn @ left.T_base_camera[:3, :3]
-    maps_l = _remap_maps(left, R_l, rig.An1, size)
-    maps_r = _remap_maps(right, rig.Rn @ right.T_base_camera[:3, :3], rig.An2, size)
-    out_l, mask_l = _warp(img_l, maps_l, left.intrinsics.size)
-    out_r, mask_r = _warp(img_r, maps_r, right.intrinsics.size)
-    rotation = round(math.degrees(math.atan2(R_l[1, 0], R_l[0, 0])), 9) + 0.0  # no "-0"
-    log.debug("rectified %dx%d, swapped=%s, rotation %.1f deg, baseline %.4f m", *size, swapped,
-              rotation, float(np.linalg.norm(rig.c2 - rig.c1)))
-    return RectifiedPair(out_l, out_r, mask_l, mask_r, _geometry(rig, size), rig.rectification(),
-                         swapped, left.intrinsics, left.T_base_camera, maps_l, maps_r,
-                         rig.angle_deg, rotation)
+    plan = RectificationPlan.from_views(_intrinsics(image1, K1, dist1), T_base_cam1,
+                                        _intrinsics(image2, K2, dist2), T_base_cam2)
+    return plan.rectify(image1, image2, depth_range=depth_range, out_size=out_size)
 
 
 def _intrinsics(image: np.ndarray, K: np.ndarray, dist: np.ndarray | None) -> Intrinsics:

@@ -1,7 +1,7 @@
 """Disparity -> depth -> 3D points (rectified-left camera, base frame, original left view).
 
 All functions take the disparity of the rectified left image (``x_right = x_left - d``, NaN = no
-match) and a :class:`~armstereo.reconstruct.rectify.StereoGeometry`. Depth is
+match) and a :class:`~armstereo.reconstruct.rectified.StereoGeometry`. Depth is
 ``Z = fx * b / (d - (cx_l - cx_r))`` in metres along the rectified optical axis; pixels whose
 ``d - (cx_l - cx_r)`` is not positive (a point at or beyond infinity) get NaN. Arithmetic is
 float64; outputs are float32 unless a float64 disparity is given (then float64, for exact
@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 
 from armstereo.errors import StereoError
-from armstereo.reconstruct.rectify import RectifiedPair, StereoGeometry
+from armstereo.reconstruct.rectified import RectifiedPair, StereoGeometry
 from armstereo.transforms import invert, transform_points
 
 VALID_WEIGHT = 1.0 - 1e-3  # share of bilinear weight that must fall on matched pixels

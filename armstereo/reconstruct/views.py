@@ -10,7 +10,9 @@ another robot, a dataset); ``armstereo reconstruct`` calls it for each recorded 
 
 Stages (each timed in ``timings_s``): ``rectify`` (Fusiello from the poses, lens distortion
 removed in the same remap; the view from which the other lies to the right becomes "left"),
-``match`` (Birchfield-Tomasi or SGBM on the rectified pair) and ``triangulate``.
+``match`` (Birchfield-Tomasi or SGBM on the rectified pair, as the ``stereo`` options say:
+:class:`~armstereo.reconstruct.stereo_options.BirchfieldOptions` or ``SgbmOptions``) and
+``triangulate``.
 """
 
 from __future__ import annotations
@@ -33,15 +35,16 @@ from armstereo.photometric.correct import (
     record,
     remove_vignetting,
 )
-from armstereo.reconstruct.rectify import RectifiedPair, rectified_geometry, rectify_pair
-from armstereo.reconstruct.stereo import METHODS, compute_disparity
+from armstereo.reconstruct.rectified import RectifiedPair
+from armstereo.reconstruct.rectify import RectificationPlan
+from armstereo.reconstruct.stereo import disparity as match_pair
+from armstereo.reconstruct.stereo_options import METHODS, StereoOptions, resolve_matcher
 from armstereo.reconstruct.triangulate import (
     depth_from_disparity,
     depth_in_original_view,
     point_cloud,
 )
 from armstereo.reconstruct.window import DisparityWindow, choose_window, fit_to_canvas
-from armstereo.transforms import as_rigid
 
 log = logging.getLogger(__name__)
 
@@ -56,10 +59,12 @@ class Reconstruction:
 
     ``swapped`` is True when the second input view became the rectified left image.
     ``colors_bgr`` is the points' colour as OpenCV images hold it, ``colors`` the same as RGB.
+    ``stereo`` is the matcher's options object (its ``method`` is ``method``).
     """
 
     swapped: bool
     method: str
+    stereo: StereoOptions | None = None
     window: DisparityWindow
     rectified: RectifiedPair
     disparity: np.ndarray
@@ -98,10 +103,11 @@ class Reconstruction:
 def reconstruct_views(image1: np.ndarray, image2: np.ndarray, K1: np.ndarray, K2: np.ndarray,
                       T_base_cam1: np.ndarray, T_base_cam2: np.ndarray, *,
                       dist1: np.ndarray | None = None, dist2: np.ndarray | None = None,
-                      method: str = "birchfield", near: float | None = None,
+                      method: str | None = None, near: float | None = None,
                       far: float | None = None, min_disparity: float | None = None,
                       max_disparity: float | None = None, disparity_budget: int | str = "auto",
                       stereo_options: dict | None = None,
+                      stereo: StereoOptions | None = None,
                       photometric: bool | PhotometricOptions = True) -> Reconstruction:
     """Rectify, match and triangulate two views of a static scene.
 
@@ -112,32 +118,33 @@ def reconstruct_views(image1: np.ndarray, image2: np.ndarray, K1: np.ndarray, K2
     ``near``..``far`` (m), or equivalently ``max_disparity``..``min_disparity`` (pixels of the
     rectified pair, f b / Z; 0 = infinity); unset ends are guessed from the scene (the plane
     z = 0 of base) or defaults. ``disparity_budget`` caps the labels searched ("auto" = as the
-    range needs, up to 256). ``method``: "birchfield" (default) or "sgbm";
-    ``stereo_options`` go to the matcher. ``photometric``: what is corrected before matching
-    (:mod:`armstereo.photometric.correct`): True (default) equalises the pair's exposure and
-    white balance and, when the options carry the camera's vignetting model (a mount file's
-    ``[vignetting]``), divides it out; False corrects nothing. What was done is in
-    ``result.photometric``.
+    range needs, up to 256). ``stereo``: how to match, an options object
+    (:class:`~armstereo.reconstruct.stereo_options.BirchfieldOptions`, the default, or
+    ``SgbmOptions``); or ``method`` ("birchfield" or "sgbm") with the older ``stereo_options``
+    dict of the matcher's keywords. The result records the options (``stereo``).
+    ``photometric``: what is corrected before matching (:mod:`armstereo.photometric.correct`):
+    True (default) equalises the pair's exposure and white balance and, when the options carry
+    the camera's vignetting model (a mount file's ``[vignetting]``), divides it out; False
+    corrects nothing. What was done is in ``result.photometric``.
 
     Raises ConfigError for bad options, StereoError when the pair cannot be rectified or
     matched (no baseline, views that do not overlap, mismatched images).
     """
-    if method not in METHODS:
-        raise ConfigError(f"--method must be one of {', '.join(METHODS)}, got {method!r}")
+    matcher = _matcher(method, stereo, stereo_options)
     timings: dict[str, float] = {}
     photo = as_options(photometric)
     with _timed(timings, "photometric"):
         image1, image2 = remove_vignetting(image1, image2, photo)
     with _timed(timings, "rectify"):
-        intr1, T1 = _view(image1, K1, dist1, T_base_cam1, "1")
-        intr2, T2 = _view(image2, K2, dist2, T_base_cam2, "2")
-        geometry0, swapped = rectified_geometry(intr1, T1, intr2, T2)
+        # the poses are checked and the rectification solved once, for both steps below
+        plan = RectificationPlan.from_views(_intrinsics(image1, K1, dist1, "1"), T_base_cam1,
+                                            _intrinsics(image2, K2, dist2, "2"), T_base_cam2,
+                                            snap=True)
+        geometry0, swapped = plan.geometry(), plan.swapped
         near, far = _depth_range(geometry0, near, far, min_disparity, max_disparity)
-        left_intr, T_left = (intr2, T2) if swapped else (intr1, T1)
-        window = choose_window(geometry0, left_intr, T_left, near=near, far=far,
-                               max_disparity=disparity_budget)
-        rect = rectify_pair(image1, image2, intr1.K, intr1.dist, T1, intr2.K, intr2.dist, T2,
-                            depth_range=(window.near, window.far))
+        window = choose_window(geometry0, plan.left_intrinsics, plan.T_base_left_camera,
+                               near=near, far=far, max_disparity=disparity_budget)
+        rect = plan.rectify(image1, image2, depth_range=(window.near, window.far))
         window = fit_to_canvas(window, rect.geometry, auto=disparity_budget == "auto")
     with _timed(timings, "photometric", add=True):
         right, gains = equalize_exposure(rect.left, rect.right, window.max_disparity, photo,
@@ -148,24 +155,33 @@ def reconstruct_views(image1: np.ndarray, image2: np.ndarray, K1: np.ndarray, K2
               rect.rotation_deg, rect.baseline * 1000, window.near, window.far,
               window.max_disparity, window.source)
     with _timed(timings, "match"):
-        disparity = compute_disparity(rect.left, rect.right, window.max_disparity, method=method,
-                                      min_disparity=0, left_mask=rect.left_mask,
-                                      right_mask=rect.right_mask, **(stereo_options or {}))
+        disparity = match_pair(rect.left, rect.right, window.max_disparity, matcher,
+                               min_disparity=0, left_mask=rect.left_mask,
+                               right_mask=rect.right_mask)
     with _timed(timings, "triangulate"):
         points, colors = point_cloud(disparity, rect.geometry, rect.left)
-    return Reconstruction(swapped=swapped, method=method, window=window, rectified=rect,
+    return Reconstruction(swapped=swapped, method=matcher.method, stereo=matcher,
+                          window=window, rectified=rect,
                           disparity=disparity, points_base=points, colors_bgr=colors,
                           timings_s=timings, photometric=record(photo, gains))
 
 
-def _view(image: np.ndarray, K, dist, T, which: str) -> tuple[Intrinsics, np.ndarray]:
-    """The view's intrinsics (from its image size) and its checked, re-orthonormalized pose."""
+def _matcher(method: str | None, stereo: StereoOptions | None,
+             stereo_options: dict | None) -> StereoOptions:
+    """The matcher's options from ``stereo`` or ``method`` and ``stereo_options``; ConfigError
+    for an unknown method, both kinds of options or options of another method."""
+    if method is not None and method not in METHODS:
+        raise ConfigError(f"--method must be one of {', '.join(METHODS)}, got {method!r}")
+    return resolve_matcher(method, stereo, stereo_options, error=ConfigError)
+
+
+def _intrinsics(image: np.ndarray, K, dist, which: str) -> Intrinsics:
+    """The view's intrinsics, its size from its image (checked)."""
     if not isinstance(image, np.ndarray) or image.ndim not in (2, 3) or image.size == 0:
         raise StereoError(f"image{which} must be a non-empty (H, W) or (H, W, 3) uint8 array")
     dist = np.zeros(5) if dist is None else np.asarray(dist, dtype=float).reshape(-1)
-    intr = Intrinsics(int(image.shape[1]), int(image.shape[0]), np.asarray(K, dtype=float),
+    return Intrinsics(int(image.shape[1]), int(image.shape[0]), np.asarray(K, dtype=float),
                       dist)
-    return intr, as_rigid(T, f"T_base_cam{which}", error=StereoError, snap=True)
 
 
 def _depth_range(geometry, near, far, min_disparity, max_disparity):

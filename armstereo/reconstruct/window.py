@@ -16,7 +16,7 @@ import numpy as np
 
 from armstereo.camera_model import Intrinsics
 from armstereo.errors import ConfigError
-from armstereo.reconstruct.rectify import StereoGeometry
+from armstereo.reconstruct.rectified import StereoGeometry
 
 log = logging.getLogger(__name__)
 

@@ -14,7 +14,7 @@ from armstereo.recording.contents import ChannelInfo, Pair, View
 from armstereo.recording.decode import image_size_from_header
 
 if TYPE_CHECKING:
-    from armstereo.recording.reader import Recording
+    from armstereo.recording.contents import RecordingContents
 
 BASELINE_TOLERANCE_M = 1e-4  # event vs poses: larger differences are reported
 # Our FK vs the controller's own flange pose: with the controller's calibrated table they agree
@@ -25,7 +25,7 @@ FK_VS_CONTROLLER_TOLERANCE_M = 1e-4
 RECORDED_TABLE_TOLERANCE_M = 1e-9
 
 
-def assemble(rec: Recording, col: Collector) -> None:
+def assemble(rec: RecordingContents, col: Collector) -> None:
     """Turn collected messages into views, pairs and warnings."""
     rec.metadata_records = dict(col.metadata)
     rec.metadata = dict(col.metadata.get(S.METADATA_NAME, {}))
@@ -47,7 +47,7 @@ def assemble(rec: Recording, col: Collector) -> None:
         rec._warn("the recording holds no readable message")
 
 
-def _check_pairs_asked(rec: Recording) -> None:
+def _check_pairs_asked(rec: RecordingContents) -> None:
     """An interrupted capture holds fewer pairs than its metadata asked for: say so."""
     try:
         asked = int(rec.metadata.get("pairs", ""))
@@ -59,7 +59,7 @@ def _check_pairs_asked(rec: Recording) -> None:
                   "recorded (interrupted or failed?)")
 
 
-def _set_calibration(rec: Recording, col: Collector) -> None:
+def _set_calibration(rec: RecordingContents, col: Collector) -> None:
     if not col.calibrations:
         rec._warn(f"no camera calibration ({S.TOPIC_CALIBRATION}): pairs cannot be used")
         return
@@ -79,7 +79,7 @@ def _intrinsics_at(col: Collector, t_ns: int) -> Intrinsics | None:
     return None if best is None else best.intrinsics
 
 
-def _build_views(rec: Recording, col: Collector) -> None:
+def _build_views(rec: RecordingContents, col: Collector) -> None:
     claimed: set[int] = set()
     for index in sorted(col.view_events):
         t_ns, settle_s, controller = col.view_events[index]
@@ -101,7 +101,7 @@ def _build_views(rec: Recording, col: Collector) -> None:
                       "cut short?)")
 
 
-def _make_view(rec: Recording, col: Collector, index: int, t_ns: int,
+def _make_view(rec: RecordingContents, col: Collector, index: int, t_ns: int,
                settle_s: float) -> View:
     fmt, data = col.images[t_ns]
     frames = col.tf[t_ns]
@@ -126,7 +126,7 @@ def _make_view(rec: Recording, col: Collector, index: int, t_ns: int,
                 _depth_msg=col.depth.get(t_ns))
 
 
-def _build_pairs(rec: Recording, col: Collector) -> None:
+def _build_pairs(rec: RecordingContents, col: Collector) -> None:
     views = {v.index: v for v in rec.views}
     for event in col.pair_events:
         rec.pair_events.append(event)
@@ -154,7 +154,7 @@ def fk_vs_controller(view: View) -> tuple[float, float] | None:
     return float(lin), float(ang)
 
 
-def _check_kinematics(rec: Recording) -> None:
+def _check_kinematics(rec: RecordingContents) -> None:
     """Warn when the recorded poses are not the arm's: FK far from the controller's own pose,
     or a real arm captured with nominal kinematics."""
     worst = max(((d, v.index) for v in rec.views if (d := fk_vs_controller(v)) is not None),
@@ -171,7 +171,7 @@ def _check_kinematics(rec: Recording) -> None:
                   "table was not read): camera poses may be off by millimetres")
 
 
-def _check_recorded_table(rec: Recording) -> None:
+def _check_recorded_table(rec: RecordingContents) -> None:
     """The /tf flange poses must be the recorded table's FK of the recorded joints: that is
     what reconstruction uses. Warn for the first view where they are not."""
     text = rec.metadata.get("dh_table")
@@ -198,7 +198,7 @@ def _check_recorded_table(rec: Recording) -> None:
             return
 
 
-def _check_baseline(rec: Recording, pair: Pair) -> None:
+def _check_baseline(rec: RecordingContents, pair: Pair) -> None:
     from_poses = float(np.linalg.norm(pair.right.T_base_camera[:3, 3]
                                       - pair.left.T_base_camera[:3, 3]))
     if abs(from_poses - pair.achieved_baseline_m) > BASELINE_TOLERANCE_M:

@@ -1,10 +1,13 @@
-"""What a recording holds: views, pairs, channels and point clouds (see :class:`Recording`
-in :mod:`armstereo.recording.reader`)."""
+"""What a recording holds: views, pairs, channels and point clouds, and the
+:class:`RecordingContents` the scan (:mod:`~armstereo.recording.mcap_scan`) and the assembly
+(:mod:`~armstereo.recording.assemble`) fill in, which :class:`~armstereo.recording.reader.Recording`
+opens and gives access to. Defined here, below all three, so none imports the reader back."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import cached_property
+from pathlib import Path
 
 import numpy as np
 from foxglove_schemas_protobuf.RawImage_pb2 import RawImage
@@ -93,3 +96,32 @@ class RecordedPointCloud:
     colors_bgr: np.ndarray
 
 
+class RecordingContents:
+    """What was read from one file: filled in by the scan and the assembly, read through
+    :class:`~armstereo.recording.reader.Recording`."""
+
+    def __init__(self, path: Path, size_bytes: int) -> None:
+        self.path = path
+        self.size_bytes = size_bytes
+        self.indexed = False
+        self.truncated = False
+        self.lost: list[str] = []  # what could not be read, one line each
+        self.warnings: list[str] = []  # every problem found, including the lost items
+        self.metadata: dict[str, str] = {}
+        self.metadata_records: dict[str, dict[str, str]] = {}
+        self.channels: list[ChannelInfo] = []
+        self.views: list[View] = []
+        self.pair_events: list[dict] = []  # as recorded, complete or not
+        self.calibration: Intrinsics | None = None
+        self.calibration_info: dict | None = None  # frame_id, distortion_model, ...
+        self.point_clouds: list[RecordedPointCloud] = []
+        self.start_ns: int | None = None
+        self.end_ns: int | None = None
+        self._pairs: list[Pair] = []
+
+    def _warn(self, text: str) -> None:
+        self.warnings.append(text)
+
+    def _lose(self, text: str) -> None:
+        self.lost.append(text)
+        self.warnings.append(text)

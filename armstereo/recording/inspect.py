@@ -1,6 +1,6 @@
 """Summaries of a recording for ``armstereo inspect``: a stable JSON form and a text form.
 
-The JSON keys are part of the documented interface (README, "Recordings"); add keys, never rename
+The JSON keys are part of the documented interface (recordings/README.md); add keys, never rename
 or remove them.
 """
 
@@ -14,7 +14,7 @@ from armstereo.recording.reader import Recording, View
 
 
 def summarize(rec: Recording) -> dict:
-    """The JSON-ready summary of an opened recording (keys documented in the README)."""
+    """The JSON-ready summary of an opened recording (keys documented in recordings/README.md)."""
     views = {v.index: v for v in rec.views}
     return {
         "file": str(rec.path),

@@ -34,7 +34,7 @@ from mcap.stream_reader import breakup_chunk
 from armstereo.recording.collect import Collector, describe
 
 if TYPE_CHECKING:
-    from armstereo.recording.reader import Recording
+    from armstereo.recording.contents import RecordingContents
 
 MAGIC = b"\x89MCAP0\r\n"
 RECORD_HEADER = 9  # opcode (1) + length (8)
@@ -105,7 +105,7 @@ def _read_one(f, offset: int, end: int) -> tuple[object, list, int]:
 
 
 
-def scan(f, size: int, collector: Collector, rec: Recording) -> None:
+def scan(f, size: int, collector: Collector, rec: RecordingContents) -> None:
     """Feed every readable record to ``collector``, by index if possible, else by streaming."""
     try:
         summary = _read_summary(f, size)
@@ -150,7 +150,8 @@ def _read_summary(f, size: int) -> list | None:
     return records
 
 
-def _scan_indexed(f, size: int, summary: list, collector: Collector, rec: Recording) -> None:
+def _scan_indexed(f, size: int, summary: list, collector: Collector,
+                  rec: RecordingContents) -> None:
     data_end = size
     for record in summary:
         if not isinstance(record, (ChunkIndex, MetadataIndex)):
@@ -167,7 +168,7 @@ def _scan_indexed(f, size: int, summary: list, collector: Collector, rec: Record
             collector.add(r)
 
 
-def _try_read(f, offset: int, end: int, rec: Recording, what: str) -> list:
+def _try_read(f, offset: int, end: int, rec: RecordingContents, what: str) -> list:
     try:
         _, records, _ = _read_one(f, offset, end)
     except _BadRecord as err:
@@ -176,7 +177,7 @@ def _try_read(f, offset: int, end: int, rec: Recording, what: str) -> list:
     return records
 
 
-def _scan_stream(f, size: int, collector: Collector, rec: Recording) -> None:
+def _scan_stream(f, size: int, collector: Collector, rec: RecordingContents) -> None:
     offset = len(MAGIC)
     unknown = 0
     while True:

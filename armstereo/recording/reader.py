@@ -15,12 +15,17 @@ import logging
 from collections.abc import Iterator
 from pathlib import Path
 
-from armstereo.camera_model import Intrinsics
 from armstereo.errors import RecordingError
 from armstereo.recording import schemas as S
 from armstereo.recording.assemble import assemble
 from armstereo.recording.collect import Collector
-from armstereo.recording.contents import ChannelInfo, Pair, RecordedPointCloud, View
+from armstereo.recording.contents import (
+    ChannelInfo,
+    Pair,
+    RecordedPointCloud,
+    RecordingContents,
+    View,
+)
 from armstereo.recording.mcap_scan import MAGIC, scan
 
 __all__ = ["ChannelInfo", "Pair", "RecordedPointCloud", "Recording", "View"]
@@ -28,32 +33,14 @@ __all__ = ["ChannelInfo", "Pair", "RecordedPointCloud", "Recording", "View"]
 log = logging.getLogger(__name__)
 
 
-class Recording:
-    """An opened recording: views, pairs, calibration, metadata and what went wrong.
+class Recording(RecordingContents):
+    """An opened recording: views, pairs, calibration, metadata and what went wrong (the
+    fields of :class:`~armstereo.recording.contents.RecordingContents`).
 
     ``len(rec)``, ``rec[k]`` and iteration give the complete pairs in file order (``rec[k]`` is
     the k-th complete pair; ``Pair.index`` is the number the capture gave it). Access to pairs
     raises :class:`RecordingError` when the file has no camera calibration.
     """
-
-    def __init__(self, path: Path, size_bytes: int) -> None:
-        self.path = path
-        self.size_bytes = size_bytes
-        self.indexed = False
-        self.truncated = False
-        self.lost: list[str] = []  # what could not be read, one line each
-        self.warnings: list[str] = []  # every problem found, including the lost items
-        self.metadata: dict[str, str] = {}
-        self.metadata_records: dict[str, dict[str, str]] = {}
-        self.channels: list[ChannelInfo] = []
-        self.views: list[View] = []
-        self.pair_events: list[dict] = []  # as recorded, complete or not
-        self.calibration: Intrinsics | None = None
-        self.calibration_info: dict | None = None  # frame_id, distortion_model, ...
-        self.point_clouds: list[RecordedPointCloud] = []
-        self.start_ns: int | None = None
-        self.end_ns: int | None = None
-        self._pairs: list[Pair] = []
 
     @classmethod
     def open(cls, path: str | Path) -> Recording:
@@ -121,12 +108,3 @@ class Recording:
         if self.start_ns is None or self.end_ns is None:
             return None
         return (self.end_ns - self.start_ns) / 1e9
-
-    def _warn(self, text: str) -> None:
-        self.warnings.append(text)
-
-    def _lose(self, text: str) -> None:
-        self.lost.append(text)
-        self.warnings.append(text)
-
-

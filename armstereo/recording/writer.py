@@ -5,6 +5,9 @@ process killed even by SIGKILL leaves a file that a streaming reader reads up to
 complete call (in particular the last complete view). In the main thread, SIGINT and SIGTERM are
 held back while a call writes and delivered right after it, so Ctrl-C never lands inside the
 MCAP writer and ``close()`` (from a ``finally`` or ``with``) always finishes a valid file.
+
+The messages' contents are built in :mod:`~armstereo.recording.messages`, the file lock and the
+signal hold-back are in :mod:`~armstereo.recording.crash_safe`.
 """
 
 from __future__ import annotations
@@ -13,8 +16,6 @@ import contextlib
 import json
 import logging
 import os
-import signal
-import threading
 from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 
@@ -22,31 +23,34 @@ import cv2
 import numpy as np
 from foxglove_schemas_protobuf.CameraCalibration_pb2 import CameraCalibration
 from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
-from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
-from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
-from foxglove_schemas_protobuf.PackedElementField_pb2 import PackedElementField
 from foxglove_schemas_protobuf.PointCloud_pb2 import PointCloud
 from foxglove_schemas_protobuf.Pose_pb2 import Pose
 from foxglove_schemas_protobuf.Quaternion_pb2 import Quaternion
-from foxglove_schemas_protobuf.RawImage_pb2 import RawImage
 from foxglove_schemas_protobuf.Vector3_pb2 import Vector3
 from google.protobuf.message import Message
-from google.protobuf.timestamp_pb2 import Timestamp
 from mcap.writer import LIBRARY_IDENTIFIER, CompressionType
 from mcap.writer import Writer as McapWriter
 from mcap_protobuf.schema import register_schema
-
-try:  # POSIX: an advisory lock keeps two writers off one file
-    import fcntl
-except ImportError:  # pragma: no cover - Windows: no lock, the last writer wins
-    fcntl = None
 
 from armstereo import __version__
 from armstereo.camera_model import Intrinsics
 from armstereo.errors import ConfigError, RecordingError
 from armstereo.frame import Frame
 from armstereo.recording import schemas as S
-from armstereo.transforms import as_rigid, quaternion_xyzw
+from armstereo.recording.crash_safe import open_exclusive, signals_deferred
+from armstereo.recording.messages import (
+    POINT_DTYPE,
+    POINT_STRIDE,
+    check_index,
+    check_number,
+    check_time,
+    check_vector,
+    depth_message,
+    frames_message,
+    point_fields,
+    stamp,
+)
+from armstereo.transforms import as_rigid
 
 log = logging.getLogger(__name__)
 
@@ -63,7 +67,6 @@ PNG_PARAMS: tuple[int, ...] = (
       if hasattr(cv2, "IMWRITE_PNG_FILTER") else ()),
 )
 JPEG_QUALITY = 95
-POINT_STRIDE = 16  # x, y, z float32 + r, g, b, a uint8
 
 
 class RecordingWriter:
@@ -99,7 +102,7 @@ class RecordingWriter:
         self._closed = False
         self._broken = False  # a write failed half way: close() must not trust the writer
         self._good_offset = 0  # file size after the last complete flush
-        self._file = _open_exclusive(self.path)  # closed by close()
+        self._file = open_exclusive(self.path)  # closed by close()
         try:
             self._mcap = McapWriter(self._file, chunk_size=CHUNK_SIZE,
                                     compression=chunk_compression)
@@ -138,14 +141,14 @@ class RecordingWriter:
     def write_calibration(self, intrinsics: Intrinsics, t_ns: int,
                           frame_id: str = S.FRAME_CAMERA) -> None:
         """Record the camera intrinsics (``foxglove.CameraCalibration``, R = I, P = [K|0])."""
-        t_ns = _check_time(t_ns)
+        t_ns = check_time(t_ns)
         K = np.asarray(intrinsics.K, dtype=float)
         D = np.asarray(intrinsics.dist, dtype=float).reshape(-1)
         if D.size == 4:
             D = np.append(D, 0.0)  # Foxglove's plumb_bob has 5 terms; k3 = 0 is the same model
         model = S.DISTORTION_PLUMB_BOB if D.size == 5 else S.DISTORTION_RATIONAL
         P = np.hstack([K, np.zeros((3, 1))])
-        msg = CameraCalibration(timestamp=_stamp(t_ns), frame_id=frame_id,
+        msg = CameraCalibration(timestamp=stamp(t_ns), frame_id=frame_id,
                                 width=int(intrinsics.width), height=int(intrinsics.height),
                                 distortion_model=model, D=D.tolist(), K=K.reshape(-1).tolist(),
                                 R=np.eye(3).reshape(-1).tolist(), P=P.reshape(-1).tolist())
@@ -163,15 +166,15 @@ class RecordingWriter:
         ``controller_T_base_flange``: the flange pose the arm's controller reported for the same
         joints (kept in the view event, for the FK cross-check), if the arm reports one.
         """
-        view = _check_index("view", view)
-        t_ns = _check_time(frame.timestamp_ns)
+        view = check_index("view", view)
+        t_ns = check_time(frame.timestamp_ns)
         if view in self._view_times:
             raise RecordingError(f"view {view} was already written to {self.path}")
         for other, t_other in self._view_times.items():
             if t_other == t_ns:
                 raise RecordingError(f"view {view} has the same timestamp {t_ns} ns as view "
                                      f"{other}; camera timestamps must differ between views")
-        q = _check_vector("joint positions", q)
+        q = check_vector("joint positions", q)
         names = [str(n) for n in joint_names]
         if len(names) != q.size:
             raise RecordingError(f"{q.size} joint positions but {len(names)} joint names")
@@ -183,12 +186,12 @@ class RecordingWriter:
             raise RecordingError(f"view {view} depth is {np.shape(frame.depth)}, its image "
                                  f"{np.shape(frame.image)[:2]}")
         image_msg = self._image_message(frame.image, t_ns, S.FRAME_CAMERA)
-        depth_msg = None if frame.depth is None else _depth_message(frame.depth, t_ns,
+        depth_msg = None if frame.depth is None else depth_message(frame.depth, t_ns,
                                                                     S.FRAME_CAMERA)
-        tf_msg = _frames_message(T_base_flange, T_flange_camera, t_ns)
+        tf_msg = frames_message(T_base_flange, T_flange_camera, t_ns)
         joints = {"timestamp_ns": t_ns, "view": view, "names": names, "positions": q.tolist()}
         event = {"event": "view", "view": view, "timestamp_ns": t_ns,
-                 "settle_s": _check_number("settle_s", settle_s)}
+                 "settle_s": check_number("settle_s", settle_s)}
         if controller_T_base_flange is not None:
             event["controller_T_base_tool0"] = as_rigid(
                 controller_T_base_flange, "controller T_base_flange",
@@ -208,25 +211,25 @@ class RecordingWriter:
         """Record that two written views form stereo pair ``pair`` (logged at the later view).
         ``viewpoint``: the scan viewpoint the pair was shot from (``armstereo scan``; the
         event then carries it), None for a single-line capture."""
-        pair = _check_index("pair", pair)
+        pair = check_index("pair", pair)
         for name, v in (("left_view", left_view), ("right_view", right_view)):
             if v not in self._view_times:
                 raise RecordingError(f"pair {pair}: {name} {v} was not written to {self.path}")
         t_ns = max(self._view_times[left_view], self._view_times[right_view])
-        commanded = _check_number("commanded baseline", commanded_baseline_m)
-        achieved = _check_number("achieved baseline", achieved_baseline_m)
+        commanded = check_number("commanded baseline", commanded_baseline_m)
+        achieved = check_number("achieved baseline", achieved_baseline_m)
         event = {"event": "pair", "pair": pair, "left_view": int(left_view),
                  "right_view": int(right_view), "commanded_baseline_m": commanded,
                  "achieved_baseline_m": achieved, "direction": str(direction)}
         if viewpoint is not None:
-            event["viewpoint"] = _check_index("viewpoint", viewpoint)
+            event["viewpoint"] = check_index("viewpoint", viewpoint)
         with self._operation():
             self._add(S.TOPIC_EVENTS, t_ns, event)
 
     def write_point_cloud(self, points_base: np.ndarray, colors_bgr: np.ndarray, t_ns: int,
                           frame_id: str = S.FRAME_BASE, topic: str = S.TOPIC_POINTS) -> None:
         """Record a coloured point cloud (``foxglove.PointCloud``, float32 xyz + rgba, metres)."""
-        t_ns = _check_time(t_ns)
+        t_ns = check_time(t_ns)
         pts = np.asarray(points_base, dtype=float)
         cols = np.asarray(colors_bgr)
         if pts.ndim != 2 or pts.shape[1] != 3:
@@ -239,9 +242,9 @@ class RecordingWriter:
             packed[name] = pts[:, axis]
         packed["red"], packed["green"], packed["blue"] = cols[:, 2], cols[:, 1], cols[:, 0]
         packed["alpha"] = 255
-        msg = PointCloud(timestamp=_stamp(t_ns), frame_id=frame_id,
+        msg = PointCloud(timestamp=stamp(t_ns), frame_id=frame_id,
                          pose=Pose(position=Vector3(), orientation=Quaternion(w=1.0)),
-                         point_stride=POINT_STRIDE, fields=_point_fields(),
+                         point_stride=POINT_STRIDE, fields=point_fields(),
                          data=packed.tobytes())
         self._check_topic(topic, msg)
         with self._operation():
@@ -251,7 +254,7 @@ class RecordingWriter:
     def write_image(self, topic: str, image: np.ndarray, t_ns: int,
                     frame_id: str = S.FRAME_CAMERA) -> None:
         """Record a uint8 BGR or grey image on ``topic`` as ``foxglove.CompressedImage``."""
-        t_ns = _check_time(t_ns)
+        t_ns = check_time(t_ns)
         msg = self._image_message(image, t_ns, frame_id)
         self._check_topic(topic, msg)
         with self._operation():
@@ -260,8 +263,8 @@ class RecordingWriter:
     def write_depth(self, depth: np.ndarray, t_ns: int, frame_id: str = S.FRAME_CAMERA,
                     topic: str = S.TOPIC_DEPTH) -> None:
         """Record a float32 depth image (metres, NaN = none) as ``foxglove.RawImage`` 32FC1."""
-        t_ns = _check_time(t_ns)
-        msg = _depth_message(depth, t_ns, frame_id)
+        t_ns = check_time(t_ns)
+        msg = depth_message(depth, t_ns, frame_id)
         self._check_topic(topic, msg)
         with self._operation():
             self._add(topic, t_ns, msg)
@@ -269,8 +272,8 @@ class RecordingWriter:
     def write_frames(self, T_base_flange: np.ndarray, T_flange_camera: np.ndarray,
                      t_ns: int) -> None:
         """Record base -> tool0 and tool0 -> camera_optical on /tf (``FrameTransforms``)."""
-        t_ns = _check_time(t_ns)
-        msg = _frames_message(T_base_flange, T_flange_camera, t_ns)
+        t_ns = check_time(t_ns)
+        msg = frames_message(T_base_flange, T_flange_camera, t_ns)
         with self._operation():
             self._add(S.TOPIC_TF, t_ns, msg)
 
@@ -289,7 +292,7 @@ class RecordingWriter:
             return
         self._closed = True
         failure = None
-        with _signals_deferred():
+        with signals_deferred():
             try:
                 if not self._broken:
                     self._mcap.finish()
@@ -324,7 +327,7 @@ class RecordingWriter:
             raise RecordingError(f"recording {self.path} is already closed")
         if self._broken:
             raise RecordingError(f"recording {self.path} failed earlier and takes no more data")
-        with _signals_deferred():
+        with signals_deferred():
             try:
                 yield
                 self._mcap.flush()
@@ -382,74 +385,8 @@ class RecordingWriter:
         if not ok:
             raise RecordingError(f"OpenCV could not encode a {img.shape} image as "
                                  f"{self.image_format}")
-        return CompressedImage(timestamp=_stamp(t_ns), frame_id=frame_id,
+        return CompressedImage(timestamp=stamp(t_ns), frame_id=frame_id,
                                format=self.image_format, data=buf.tobytes())
-
-
-POINT_DTYPE = np.dtype({"names": ["x", "y", "z", "red", "green", "blue", "alpha"],
-                        "formats": ["<f4", "<f4", "<f4", "u1", "u1", "u1", "u1"],
-                        "offsets": [0, 4, 8, 12, 13, 14, 15], "itemsize": POINT_STRIDE})
-
-
-def _point_fields() -> list[PackedElementField]:
-    f32, u8 = PackedElementField.FLOAT32, PackedElementField.UINT8
-    return [PackedElementField(name=name, offset=POINT_DTYPE.fields[name][1],
-                               type=f32 if name in "xyz" else u8)
-            for name in POINT_DTYPE.names]
-
-
-def _depth_message(depth: np.ndarray, t_ns: int, frame_id: str) -> RawImage:
-    d = np.asarray(depth)
-    if d.ndim != 2 or d.dtype.kind != "f":
-        raise RecordingError(f"depth must be a float HxW array, got {d.dtype} {d.shape}")
-    d = np.ascontiguousarray(d, dtype="<f4")
-    h, w = d.shape
-    return RawImage(timestamp=_stamp(t_ns), frame_id=frame_id, width=w, height=h,
-                    encoding=S.DEPTH_ENCODING, step=4 * w, data=d.tobytes())
-
-
-def _frames_message(T_base_flange: np.ndarray, T_flange_camera: np.ndarray,
-                    t_ns: int) -> FrameTransforms:
-    return FrameTransforms(transforms=[
-        _transform("T_base_flange", T_base_flange, S.FRAME_BASE, S.FRAME_FLANGE, t_ns),
-        _transform("T_flange_camera", T_flange_camera, S.FRAME_FLANGE, S.FRAME_CAMERA, t_ns),
-    ])
-
-
-def _transform(name: str, T: np.ndarray, parent: str, child: str, t_ns: int) -> FrameTransform:
-    """FrameTransform for the pose of ``child`` in ``parent`` (``T_parent_child``)."""
-    T = as_rigid(T, name, error=RecordingError)
-    x, y, z, w = quaternion_xyzw(T[:3, :3])
-    tx, ty, tz = T[:3, 3]
-    return FrameTransform(timestamp=_stamp(t_ns), parent_frame_id=parent, child_frame_id=child,
-                          translation=Vector3(x=tx, y=ty, z=tz),
-                          rotation=Quaternion(x=x, y=y, z=z, w=w))
-
-
-def _open_exclusive(path: Path):
-    """``path`` opened for writing, emptied, and locked for this process alone.
-
-    The lock is taken before the file is emptied, so a second writer of the same file (two
-    captures with ``--force``) fails at once and the first one's views survive. The lock goes
-    with the file descriptor (closed by :meth:`RecordingWriter.close` or process death).
-    """
-    try:
-        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
-    except OSError as err:
-        raise RecordingError(f"cannot create recording {path}: {err.strerror}") from None
-    try:
-        if fcntl is not None:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except OSError:
-        os.close(fd)
-        raise ConfigError(f"{path} is being written by another process; choose another "
-                          "--out or wait for it to finish") from None
-    try:
-        os.ftruncate(fd, 0)
-        return os.fdopen(fd, "wb")
-    except OSError as err:
-        os.close(fd)
-        raise RecordingError(f"cannot create recording {path}: {err.strerror}") from None
 
 
 def _metadata_record(metadata: Mapping[str, str]) -> dict[str, str]:
@@ -460,63 +397,3 @@ def _metadata_record(metadata: Mapping[str, str]) -> dict[str, str]:
                                  f"{type(value).__name__} {value!r}")
         record[key] = value
     return record
-
-
-def _stamp(t_ns: int) -> Timestamp:
-    ts = Timestamp()
-    ts.FromNanoseconds(t_ns)
-    return ts
-
-
-def _check_time(t_ns) -> int:
-    if isinstance(t_ns, bool) or not isinstance(t_ns, (int, np.integer)):
-        raise RecordingError(f"timestamps are integer nanoseconds, got {type(t_ns).__name__}")
-    if not 0 <= int(t_ns) < 2**63:
-        raise RecordingError(f"timestamp {t_ns} ns is outside 0 .. 2^63")
-    return int(t_ns)
-
-
-def _check_index(name: str, value) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
-        raise RecordingError(f"{name} number must be an integer >= 0, got {value!r}")
-    return int(value)
-
-
-def _check_vector(name: str, values) -> np.ndarray:
-    v = np.asarray(values, dtype=float).reshape(-1)
-    if not np.all(np.isfinite(v)):
-        raise RecordingError(f"{name} must be finite, got {v}")
-    return v
-
-
-def _check_number(name: str, value) -> float:
-    x = float(value)
-    if not np.isfinite(x):
-        raise RecordingError(f"{name} must be finite, got {x}")
-    return x
-
-
-@contextlib.contextmanager
-def _signals_deferred() -> Iterator[None]:
-    """Hold SIGINT/SIGTERM during a write and deliver them after it (main thread only)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    pending: list[int] = []
-    previous: dict[int, object] = {}
-
-    def hold(signum, frame):
-        pending.append(signum)
-
-    try:
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            handler = signal.getsignal(sig)
-            if handler is not None:  # None: installed outside Python, cannot be restored
-                previous[sig] = signal.signal(sig, hold)
-        yield
-    finally:
-        # SIGINT last, so a Ctrl-C arriving meanwhile cannot leave SIGTERM held for good.
-        for sig, handler in reversed(previous.items()):
-            signal.signal(sig, handler)
-        for sig in dict.fromkeys(pending):
-            signal.raise_signal(sig)  # now handled as if it had arrived just after the write

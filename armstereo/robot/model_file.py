@@ -32,8 +32,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from armstereo.errors import ConfigError
-from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
+from armstereo.robot.arm_model import ArmModel
 from armstereo.robot.dh import DHTable, ur_calibration_hash
 
 FORMAT = "armstereo-ur-kinematics"

@@ -1,6 +1,6 @@
 """A Pinocchio model of a UR arm built straight from a DH table (no URDF, no roll-pitch-yaw).
 
-The model has the same shape as the bundled URDFs, so :class:`armstereo.kinematics.ArmModel`
+The model has the same shape as the bundled URDFs, so :class:`armstereo.robot.arm_model.ArmModel`
 uses it unchanged: root ``base_link``, fixed frame ``base`` (``base_link`` turned 180 deg about
 z), six revolute joints about their local z named as in the URDFs, and frame ``tool0`` = DH frame
 6. FK from ``base`` to ``tool0`` equals :func:`armstereo.robot.dh.fk` of the table (to rounding).

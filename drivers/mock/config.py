@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from armstereo.backends import option
+from armstereo.flags import option
 from armstereo.validate import non_negative, whole
 from drivers.mock.faults import FAULTS, FaultPlan
 from drivers.mock.profile import PROFILE_NAMES, get_profile, parse_offset

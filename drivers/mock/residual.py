@@ -16,7 +16,6 @@ import numpy as np
 from armstereo.transforms import make_T, rotvec_to_matrix
 from drivers.mock.profile import TAG_REPEAT, TAG_RESIDUAL, ArmResidual, rng_for
 
-
 # Cycles per joint revolution of the error. A strain-wave gear's transmission error repeats
 # twice per turn of its wave generator, which turns about a hundred times per joint turn; these
 # lower stand-ins already make views a few tenths of a radian apart see unrelated errors.

@@ -29,7 +29,7 @@ from armstereo.validate import positive
 from drivers.worker import DeadlineMissed, SerialWorker
 
 if TYPE_CHECKING:
-    from armstereo.kinematics import ArmModel
+    from armstereo.robot.arm_model import ArmModel
     from drivers.opencv.config import OpenCVCameraConfig
 
 log = logging.getLogger(__name__)

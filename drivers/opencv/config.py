@@ -5,8 +5,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from armstereo.backends import option
 from armstereo.errors import ConfigError
+from armstereo.flags import option
 
 
 def parse_resolution(text: str | tuple[int, int] | None) -> tuple[int, int] | None:

@@ -19,12 +19,16 @@ How ur_rtde's traps are avoided:
 - Kinematics are local (ArmModel); ``getForwardKinematics`` is never used (stale registers).
   At connect the controller's own calibrated DH table is read from its read-only primary
   interface (:mod:`drivers.ur.primary`) and, when read, replaces the model's kinematics.
+
+:class:`URArm` is the life cycle and the motion; the connect steps and the dashboard unlock are
+in :mod:`drivers.ur.connect`, the readings of the receive interface in
+:mod:`drivers.ur.readings` (parts of the same class).
 """
 
 from __future__ import annotations
 
 import logging
-from typing import TYPE_CHECKING, NamedTuple
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -39,9 +43,7 @@ from armstereo.devices import (
     ArmStatus,
 )
 from armstereo.errors import (
-    ArmstereoError,
     ConfigError,
-    ConnectionFailed,
     ConnectionLost,
     EmergencyStop,
     HardwareError,
@@ -50,29 +52,23 @@ from armstereo.errors import (
     ProtectiveStop,
 )
 from armstereo.robot.dh import NOMINAL_MODELS
-from armstereo.transforms import T_from_ur_pose, as_rigid, matrix_to_rotvec, ur_pose_from_T
+from armstereo.transforms import T_from_ur_pose, as_rigid, ur_pose_from_T
 from armstereo.validate import host as validate_host
 from armstereo.validate import positive
 from drivers.ur.channel import ControlChannel
-from drivers.ur.diagnose import connection_failed
+from drivers.ur.connect import ConnectSteps, import_ur_rtde, pose_error
 from drivers.ur.primary import read_arm_kinematics
 from drivers.ur.probe import DASHBOARD_PORT, ControllerInfo, check_controller, check_port
+from drivers.ur.readings import DataWatch, Readings
 from drivers.ur.safety import ControllerState
 
 if TYPE_CHECKING:
-    from armstereo.kinematics import ArmModel
+    from armstereo.robot.arm_model import ArmModel
     from drivers.ur.config import URArmConfig
 
 log = logging.getLogger(__name__)
 
-# The only RTDE outputs the receive interface subscribes (an explicit list keeps the recipe
-# small and names exactly what a controller, or the test emulator, must provide).
-RECEIVE_VARIABLES = ("timestamp", "actual_q", "actual_TCP_pose", "robot_mode", "safety_mode",
-                     "safety_status_bits", "runtime_state", "target_speed_fraction")
-
 POLL_S = 0.01               # motion / steadiness polling period
-FRESH_POLL_S = 0.001        # polling period while waiting for new RTDE packages
-FRESH_PACKAGES = 2          # packages that must arrive after a call before its reading
 DATA_TIMEOUT_S = 1.0        # no new RTDE package for this long = link lost
 CALL_TIMEOUT_S = 5.0        # one ur_rtde control call (commands answer within a few periods)
 STOP_CALL_TIMEOUT_S = 2.0   # stopL/stopJ/stopScript while cleaning up
@@ -81,25 +77,10 @@ STOPL_DECELERATION = 5.0    # m/s^2: stops a 0.25 m/s move within 6 mm
 STOPJ_DECELERATION = 4.0    # rad/s^2: stops a 1 rad/s move within 0.13 rad
 SETTLED_TOL = (2e-4, 2e-3)  # (m, rad) at the target + isSteady counts as done (progress fallback)
 REACHED_TOL = (1e-3, 1e-2)  # (m, rad) a finished move must end this close to its target
-FK_WARN_TOL = (1e-3, 2e-3)          # controller vs model FK: calibration differs, warn
-# With the controller's own table, FK reproduces its pose to ~1e-12 m: more than this means the
-# table is not this arm's (the per-view check in recordings uses the same 0.1 mm).
-FK_CALIBRATED_WARN_TOL = (1e-4, 1e-4)
-FK_WRONG_MODEL_TOL = (0.02, 0.05)   # controller vs model FK: not this robot model, refuse
-UNLOCK_RETRY_S = 0.5        # dashboard refuses an unlock within 5 s of the stop; retry
-
 _STOP_ERRORS = {ArmState.PROTECTIVE_STOP: ProtectiveStop, ArmState.EMERGENCY_STOP: EmergencyStop}
 
 
-class _Sample(NamedTuple):
-    """One consistent RTDE reading: controller time (s), joints (rad), TCP pose (UR 6-vector)."""
-
-    controller_time: float
-    q: np.ndarray
-    tcp_pose: np.ndarray
-
-
-class URArm(Arm):
+class URArm(ConnectSteps, Readings, Arm):
     """A UR arm (CB3, e-Series) through ur_rtde.
 
     ``host``: controller IP or name. ``model``: the arm's ArmModel (local FK). ``connect_timeout``:
@@ -166,7 +147,7 @@ class URArm(Arm):
         open.
         """
         self._require_not_connected()
-        rtde_control, rtde_receive, _ = _import_ur_rtde()
+        rtde_control, rtde_receive, _ = import_ur_rtde()
         self.controller = check_controller(self.host, self.connect_timeout)
         log.info("UR controller at %s: %s", self.host, self.controller)
         self._read_calibrated_kinematics()
@@ -207,46 +188,6 @@ class URArm(Arm):
         except Exception:  # noqa: BLE001 - a property answers, it does not raise
             return False
 
-    def _open_receive(self, rtde_receive):
-        try:
-            return rtde_receive.RTDEReceiveInterface(
-                self.host, frequency=self.frequency, variables=list(RECEIVE_VARIABLES),
-                verbose=False, use_upper_range_registers=self.upper_range_registers)
-        except Exception as err:
-            raise connection_failed(self.host, "receive", err) from err
-
-    def _open_control(self, rtde_control):
-        rc = rtde_control.RTDEControlInterface
-        flags = int(rc.FLAG_UPLOAD_SCRIPT)
-        if self.upper_range_registers:
-            flags |= int(rc.FLAG_UPPER_RANGE_REGISTERS)
-        try:
-            return rc(self.host, frequency=self.frequency, flags=flags)
-        except Exception as err:
-            raise connection_failed(self.host, "control", err) from err
-
-    def _check_safe_to_connect(self) -> None:
-        """Refuse a stopped or unpowered arm before ur_rtde uploads its script."""
-        self._wait_fresh()
-        st = self._read_state()
-        if st.emergency_stopped:
-            raise EmergencyStop(f"UR controller at {self.host} is in an emergency stop or safety "
-                                f"fault ({st.describe()}): release the e-stop, then power on and "
-                                f"release the brakes")
-        if st.protective_stopped:
-            raise ProtectiveStop(f"UR controller at {self.host} is in a protective stop "
-                                 f"({st.describe()}): clear it on the pendant or with "
-                                 f"URArm.recover_protective_stop(), then connect again")
-        if not st.running:
-            raise ConnectionFailed(f"UR arm at {self.host} is not running ({st.describe()}): "
-                                   f"power it on and release the brakes")
-
-    def _set_zero_tcp(self) -> None:
-        # Zero TCP: getActualTCPPose becomes the flange (tool0) pose, comparable with our FK.
-        if not self._call("setTcp", [0.0] * 6):
-            raise ConnectionFailed(f"UR controller at {self.host} refused setTcp (is ur_rtde's "
-                                   f"control script running?)")
-
     def _read_calibrated_kinematics(self) -> None:
         """Read the controller's DH table (read-only port); use it when it was read."""
         name = str(getattr(self.model, "name", "")).lower()
@@ -255,34 +196,10 @@ class URArm(Arm):
         for note in self.kinematics.warnings:
             log.info("UR controller at %s: %s", self.host, note)
         if self.kinematics.calibrated:
-            from armstereo.kinematics import ArmModel
+            from armstereo.robot.arm_model import ArmModel
 
             self.model = ArmModel.from_dh(self.kinematics.table,
                                           mount=getattr(self.model, "mount", None))
-
-    def _cross_check_kinematics(self) -> None:
-        s = self._fresh_sample()
-        lin, ang = _pose_error(np.asarray(self.model.flange_pose(s.q), dtype=float), s.tcp_pose)
-        self.fk_mismatch = (lin, ang)
-        text = f"{lin * 1000:.2f} mm / {np.degrees(ang):.3f} deg"
-        name = getattr(self.model, "name", "model")
-        if lin > FK_WRONG_MODEL_TOL[0] or ang > FK_WRONG_MODEL_TOL[1]:
-            raise ConfigError(
-                f"UR controller at {self.host} ({self.controller}) reports a flange pose "
-                f"{text} away from the {name} model's FK (limit {FK_WRONG_MODEL_TOL[0] * 1000:g} "
-                f"mm): is this arm really a {name}?")
-        calibrated = self.kinematics is not None and self.kinematics.calibrated
-        tol = FK_CALIBRATED_WARN_TOL if calibrated else FK_WARN_TOL
-        if lin > tol[0] or ang > tol[1]:
-            if calibrated:
-                log.warning("UR controller at %s: its flange pose differs from FK with its own "
-                            "calibrated table by %s (allowed %g mm): the table read is not "
-                            "this arm's, camera poses will be off", self.host, text,
-                            tol[0] * 1000)
-            else:
-                log.warning("UR controller at %s: flange pose differs from the %s model's FK "
-                            "by %s (its calibrated table was not read); camera poses use the "
-                            "model", self.host, name, text)
 
     # ------------------------------------------------------------------------------- reading
     def joint_positions(self) -> np.ndarray:
@@ -340,7 +257,7 @@ class URArm(Arm):
         _check_timeout(timeout)
         T = _rigid(T_base_flange)
         self._move("moveL", ur_pose_from_T(T), speed, acceleration, timeout,
-                   lambda s: _pose_error(T, s.tcp_pose))
+                   lambda s: pose_error(T, s.tcp_pose))
 
     def move_joints(self, q: np.ndarray, speed: float, acceleration: float,
                     timeout: float = 60.0) -> None:
@@ -363,7 +280,7 @@ class URArm(Arm):
         _check_timeout(timeout)
         context = " while waiting for the arm to settle"
         try:
-            start, watch = self.clock.now(), _DataWatch(self)
+            start, watch = self.clock.now(), DataWatch(self)
             while True:
                 self._check_link(context)
                 self._raise_if_stopped(context)
@@ -390,7 +307,7 @@ class URArm(Arm):
         whatever caused the stop has been cleared. Raises ConnectionFailed (dashboard
         unreachable), ProtectiveStop (unlock refused for ``timeout`` s), HardwareError."""
         _check_timeout(timeout)
-        _, _, dashboard_client = _import_ur_rtde()
+        _, _, dashboard_client = import_ur_rtde()
         if self._connected:
             st = self._read_state()
             if st.emergency_stopped:
@@ -428,7 +345,7 @@ class URArm(Arm):
         """Poll until the async operation ends (or the arm rests at the target), checking link,
         data freshness and safety on every round."""
         context = f" during {command}"
-        start, watch = self.clock.now(), _DataWatch(self)
+        start, watch = self.clock.now(), DataWatch(self)
         seen_running = False
         while True:
             self._check_link(context)
@@ -480,56 +397,6 @@ class URArm(Arm):
             return ""
         return f" (speed slider at {fraction * 100:.0f} %)" if fraction < 0.999 else ""
 
-    def _unlock_via_dashboard(self, dashboard_client, timeout: float) -> None:
-        db = dashboard_client.DashboardClient(self.host)
-        try:
-            db.connect(int(self.connect_timeout * 1000))
-        except Exception as err:
-            raise connection_failed(self.host, "dashboard", err) from err
-        try:
-            start = self.clock.now()
-            while True:
-                try:
-                    db.unlockProtectiveStop()
-                    break
-                except Exception as err:
-                    if self.clock.now() - start >= timeout:
-                        raise ProtectiveStop(
-                            f"could not release the protective stop on UR controller at "
-                            f"{self.host} within {timeout:g} s ({_one_line(err)}): UR allows it "
-                            f"5 s after the stop; e-Series must be in Remote Control") from err
-                    self.clock.sleep(UNLOCK_RETRY_S)
-            try:
-                db.closeSafetyPopup()
-            except Exception as err:  # noqa: BLE001 - cosmetic on the pendant
-                log.debug("closeSafetyPopup failed: %s", err)
-        finally:
-            try:
-                db.disconnect()
-            except Exception as err:  # noqa: BLE001 - cleanup only
-                log.debug("dashboard disconnect failed: %s", err)
-
-    def _resume_control(self, timeout: float) -> None:
-        """After an unlock: wait for the stop to clear, re-upload the script, zero the TCP."""
-        self._wait_for(lambda st: not st.protective_stopped, timeout,
-                       "is still in a protective stop after the unlock")
-        # reuploadScript returns False when a script already runs; the wait below decides.
-        self._call("reuploadScript", timeout=self.call_timeout + 5.0)
-        self._wait_for(lambda st: st.program_running, timeout,
-                       "did not restart ur_rtde's control script")
-        self._set_zero_tcp()
-
-    def _wait_for(self, ok, timeout: float, failure: str) -> None:
-        start = self.clock.now()
-        while True:
-            st = self._read_state()
-            if ok(st):
-                return
-            if self.clock.now() - start > timeout:
-                raise HardwareError(f"UR controller at {self.host} {failure} within {timeout:g} s "
-                                    f"({st.describe()})")
-            self.clock.sleep(self.poll_interval)
-
     def _call(self, method: str, *args, timeout: float | None = None, **kwargs):
         """One control-interface call through the channel (serialised, with a deadline)."""
         if self._ch is None:
@@ -548,18 +415,6 @@ class URArm(Arm):
         except Exception as err:  # noqa: BLE001 - cleanup must not hide the original error
             log.warning("%s (while stopping or closing)", err)  # names host and method
 
-    def _rr_get(self, getter: str):
-        """A receive-interface getter; ur_rtde's errors become HardwareError."""
-        if self._rr is None:
-            raise NotConnected(f"{self.name}: not connected; call connect() first")
-        try:
-            return getattr(self._rr, getter)()
-        except ArmstereoError:
-            raise
-        except Exception as err:
-            raise HardwareError(f"UR controller at {self.host}: {getter} failed: "
-                                f"{_one_line(err)}") from err
-
     def _check_link(self, context: str = "") -> None:
         if not self._rr_get("isConnected"):
             raise ConnectionLost(f"lost the RTDE connection to UR controller at {self.host}"
@@ -567,12 +422,6 @@ class URArm(Arm):
         if self._ch is not None and not self._call("isConnected"):
             raise ConnectionLost(f"lost the control connection to UR controller at {self.host}"
                                  f"{context}")
-
-    def _read_state(self) -> ControllerState:
-        return ControllerState(int(self._rr_get("getSafetyStatusBits")),
-                               int(self._rr_get("getSafetyMode")),
-                               int(self._rr_get("getRobotMode")),
-                               int(self._rr_get("getRuntimeState")))
 
     def _raise_if_stopped(self, context: str, st: ControllerState | None = None) -> None:
         st = self._read_state() if st is None else st
@@ -584,66 +433,6 @@ class URArm(Arm):
                 else "has the arm not running")
         raise _STOP_ERRORS[kind](f"UR controller at {self.host} {what}{context} "
                                  f"({st.describe()})")
-
-    def _read_sample(self) -> _Sample:
-        """Latest joints and TCP pose with the timestamp of the package they came from."""
-        for _ in range(3):  # re-read if a new package landed between the getters
-            t0 = self._rr_get("getTimestamp")
-            q = self._rr_get("getActualQ")
-            pose = self._rr_get("getActualTCPPose")
-            t1 = self._rr_get("getTimestamp")
-            if t0 == t1:
-                break
-        q, pose = np.asarray(q, dtype=float), np.asarray(pose, dtype=float)
-        if q.shape != (6,) or pose.shape != (6,) or not np.all(np.isfinite(np.r_[q, pose])):
-            raise HardwareError(f"UR controller at {self.host} sent invalid state: q={q.tolist()}, "
-                                f"TCP pose={pose.tolist()}")
-        return _Sample(float(t1), q, pose)
-
-    def _fresh_sample(self) -> _Sample:
-        self._wait_fresh()
-        return self._read_sample()
-
-    def _wait_fresh(self, packages: int = FRESH_PACKAGES) -> None:
-        """Block until ``packages`` new RTDE packages arrived after this call began."""
-        watch = _DataWatch(self)
-        while watch.changes < packages:
-            self.clock.sleep(FRESH_POLL_S)
-            if not self._rr_get("isConnected"):
-                raise ConnectionLost(f"lost the RTDE connection to UR controller at {self.host}")
-            watch.check()
-
-
-class _DataWatch:
-    """Counts new RTDE packages (timestamp changes); ConnectionLost when none came for the
-    arm's ``data_timeout`` (ur_rtde itself notices only after 2.5 s, and only on EOF or silence
-    of its own thread)."""
-
-    def __init__(self, arm: URArm):
-        self.arm = arm
-        self.last = arm._rr_get("getTimestamp")
-        self.since = arm.clock.now()
-        self.changes = 0
-
-    def check(self) -> None:
-        t, now = self.arm._rr_get("getTimestamp"), self.arm.clock.now()
-        if t != self.last:
-            self.last, self.since, self.changes = t, now, self.changes + 1
-        elif now - self.since > self.arm.data_timeout:
-            raise ConnectionLost(f"no new RTDE data from UR controller at {self.arm.host} for "
-                                 f"{self.arm.data_timeout:g} s (link lost?)")
-
-
-def _import_ur_rtde():
-    """ur_rtde's three modules, or ConfigError with the install hint."""
-    try:
-        import dashboard_client
-        import rtde_control
-        import rtde_receive
-    except ImportError as err:
-        raise ConfigError(f"the UR backend needs ur_rtde ({err}): pip install ur-rtde") from err
-    return rtde_control, rtde_receive, dashboard_client
-
 
 def _check_host(host) -> str:
     return validate_host(host, "UR host")
@@ -659,15 +448,3 @@ def _check_timeout(timeout: float) -> None:
 
 def _rigid(T) -> np.ndarray:
     return as_rigid(T, "move_linear target T_base_flange")
-
-
-def _pose_error(T_target: np.ndarray, ur_pose: np.ndarray) -> tuple[float, float]:
-    """(translation m, rotation rad) between a 4x4 pose and a UR pose 6-vector."""
-    T = T_from_ur_pose(ur_pose)
-    lin = float(np.linalg.norm(T[:3, 3] - T_target[:3, 3]))
-    ang = float(np.linalg.norm(matrix_to_rotvec(T_target[:3, :3].T @ T[:3, :3])))
-    return lin, ang
-
-
-def _one_line(err: BaseException) -> str:
-    return " ".join(str(err).split()) or type(err).__name__

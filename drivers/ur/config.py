@@ -5,8 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from armstereo import validate
-from armstereo.backends import option
 from armstereo.errors import ConfigError
+from armstereo.flags import option
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -7,9 +7,9 @@ import tomllib
 
 import numpy as np
 
-from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
 from armstereo.recording import Recording
+from armstereo.robot.arm_model import ArmModel
 from tests.support import SAMPLE_RECORDING
 
 SAMPLE = SAMPLE_RECORDING

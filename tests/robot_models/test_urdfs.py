@@ -8,7 +8,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from armstereo.kinematics import JOINT_NAMES, MODEL_NAMES
+from armstereo.robot.arm_model import JOINT_NAMES, MODEL_NAMES
 from robot_models import MODELS_DIR, generate_urdfs
 
 TWO_PI = 2 * np.pi

@@ -20,7 +20,7 @@ import sys
 
 import numpy as np
 
-from armstereo.kinematics import ArmModel, ready_configuration
+from armstereo.robot.arm_model import ArmModel, ready_configuration
 from armstereo.robot.dh import DHTable, nominal_table
 from armstereo.robot.synthetic import synthetic_calibration
 

@@ -15,7 +15,7 @@ import threading
 import numpy as np
 
 from armstereo.errors import IKError
-from armstereo.kinematics import ArmModel
+from armstereo.robot.arm_model import ArmModel
 from armstereo.transforms import T_from_ur_pose, ur_pose_from_T
 
 from .faults import MoveFault, Settings

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from armstereo.kinematics import ArmModel
+from armstereo.robot.arm_model import ArmModel
 from armstereo.transforms import invert, matrix_to_rotvec, rotvec_to_matrix
 
 LINEAR_STEP_M = 0.001  # IK sample spacing along a moveL path (error in between: micrometres)

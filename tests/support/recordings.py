@@ -7,8 +7,8 @@ import numpy as np
 
 from armstereo.camera_model import Intrinsics
 from armstereo.frame import Frame
-from armstereo.kinematics import JOINT_NAMES as JOINTS
 from armstereo.recording import RecordingWriter
+from armstereo.robot.arm_model import JOINT_NAMES as JOINTS
 from armstereo.transforms import make_T, rot_x, rot_y, rot_z
 
 __all__ = ["BASELINE", "JOINTS", "T0_NS", "assert_view_matches", "small_intrinsics",

@@ -1,25 +1,28 @@
-"""Numba kernels of the Birchfield-Tomasi matcher; the public API is
-:mod:`armstereo.reconstruct.stereo`.
+"""Numba kernels of the Birchfield-Tomasi matcher, grouped by the route a call takes; the
+public API is :mod:`armstereo.reconstruct.stereo` (``birchfield()``, ``BirchfieldOptions``).
 
-Modules, in the order the matcher uses them:
+Which kernels a call runs (``armstereo.reconstruct.stereo._match`` picks the route):
 
-- :mod:`.cost`: the sampling-insensitive dissimilarity and the intensity-variation flags;
-- :mod:`.dp_exact`: the scanline dynamic programme over match sequences, solved exactly (the
-  default);
-- :mod:`.dp_pruned`: the reference code's pruned search of the same programme, its decoding and
-  the constants both solvers share;
-- :mod:`.matcher`: all rows of an image pair (on threads), masks and disparity window, for
-  the paper's single-pixel costs;
-- :mod:`.aggregate`: the default matcher on window-summed costs with slant steps: per-row
-  geometry, penalties and rewards for the whole image in numpy (:mod:`.blocks`), then
-  :mod:`.lanes` (blocks of rows in lockstep, rows as the SIMD axis via :mod:`.simd`;
-  :mod:`.fused`: its forward pass as one IR loop per right pixel, for one-column windows);
-- :mod:`.minmax`: ``min``/``max`` emitted inline (the builtins compile a function per type
-  pair: cold start);
-- :mod:`.rows`: the same programme one row at a time, used by :mod:`.vertical` (the
-  ``column_smoothing`` option: costs smoothed along the columns first);
-- :mod:`.postprocess`: the paper's propagation across scanlines and mode filters;
-- :mod:`.refine`: options beyond the paper (subpixel, left-right check).
+- the default, and every grey ``search="exact"`` call (any ``cost_window``, with or without
+  ``slant_penalty``; ``BirchfieldOptions.paper()`` too, on a 1x1 window): :mod:`.window`,
+  :func:`.window.aggregate.match_image_aggregated` -> :func:`.window.blocks.block_setup` (every
+  block's geometry, penalties and rewards) -> :func:`.window.fused.lane_forward_column` (the
+  forward pass of one-column windows; :func:`.window.lanes.lane_forward` for wider ones) ->
+  :func:`.window.lanes.lane_backtrack`: 8 rows per block in SIMD lanes (:mod:`.window.simd`);
+- ``column_smoothing=(p1, p2)``: :mod:`.columns`, :func:`.columns.vertical.match_image_vertical`
+  on the one-row kernels of :mod:`.columns.rows`;
+- colour costs on a colour pair (``color="sum"``/``"max"``) or ``search="pruned"``: the paper's
+  reference solvers, :mod:`.paper`: :func:`.paper.matcher.match_image` ->
+  :func:`.paper.dp_exact.scanline_dp_exact` (exact) or :func:`.paper.dp_pruned.scanline_dp`
+  (the reference code's pruned search; unpruned, the tests' oracle);
+- ``postprocess="paper"``, after any route: :func:`.paper.postprocess.postprocess`.
+
+Shared by every route (:mod:`.common`): the sampling-insensitive dissimilarity and the
+intensity-variation flags (:mod:`.common.cost`), the pixel states and the programme's constants
+(:mod:`.common.states`), one row's valid runs, geometry and decoding (:mod:`.common.scanline`),
+``njit`` with its cache fallback (:mod:`.common.jit`) and inline ``min``/``max``
+(:mod:`.common.minmax`). After matching, :mod:`.refine` holds the kernels of the sub-pixel
+steps, the left-right check and the row test of flat and hidden pixels.
 
 Everything here works in *doubled integer units* like Birchfield's reference code (twice each
 intensity, sums of neighbour pairs instead of half-sums), so costs are exact integers.

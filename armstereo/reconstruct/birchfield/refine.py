@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from armstereo.reconstruct.birchfield.jit import njit
+from armstereo.reconstruct.birchfield.common.jit import njit
 
 
 @njit(cache=True)

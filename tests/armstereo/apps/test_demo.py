@@ -12,6 +12,7 @@ from armstereo.apps.demo import DemoOptions, score_reconstruction
 from armstereo.cli.main import main
 from armstereo.io.ply import read_ply
 from armstereo.reconstruct.pipeline import reconstruct_pair
+from armstereo.reconstruct.stereo_options import BirchfieldOptions
 from armstereo.recording import Recording
 
 # What the realistic demo measures with seed 0 after calibrating the cell and removing the
@@ -64,7 +65,11 @@ def test_demo_accuracy_is_measured_against_ground_truth(demo_dir):
     pair = Recording.open(demo_dir / "demo.mcap")[0]
     # the report says which matcher options made it, so it can be reproduced
     assert report["matcher_options"] == DemoOptions(profile="ideal").matcher_options()
+    assert report["matcher"] == {"method": "birchfield",
+                                 "options": DemoOptions(profile="ideal").matcher().as_dict()}
     recon = reconstruct_pair(pair, stereo_options=report["matcher_options"])
+    again = reconstruct_pair(pair, stereo=BirchfieldOptions(**report["matcher"]["options"]))
+    np.testing.assert_array_equal(again.disparity, recon.disparity)
     same = score_reconstruction(recon.depth_original, pair, swapped=recon.swapped)
     assert same.median_abs_rel_depth_error == pytest.approx(
         report["accuracy"]["median_abs_rel_depth_error"], rel=1e-6)

@@ -1,7 +1,10 @@
 """Which matcher options the demo uses (DemoOptions.matcher_options)."""
 
+import pytest
+
 from armstereo.apps.demo import DemoOptions
-from armstereo.reconstruct.stereo import CLEAN_PHOTO_CHECK
+from armstereo.errors import ConfigError
+from armstereo.reconstruct.stereo import CLEAN_PHOTO_CHECK, BirchfieldOptions, SgbmOptions
 
 
 def test_the_ideal_profile_turns_the_photo_check_on():
@@ -16,3 +19,16 @@ def test_other_profiles_and_sgbm_keep_the_matchers_defaults():
 def test_given_options_win():
     given = {"lr_check": True}
     assert DemoOptions(profile="ideal", stereo_options=given).matcher_options() == given
+
+
+def test_the_matcher_is_an_options_object():
+    assert DemoOptions(profile="ideal").matcher() == BirchfieldOptions(
+        photo_check=CLEAN_PHOTO_CHECK)
+    assert DemoOptions(profile="realistic").matcher() == BirchfieldOptions()
+    assert DemoOptions(method="sgbm").matcher() == SgbmOptions()
+    given = BirchfieldOptions(lr_check=True)
+    demo = DemoOptions(profile="ideal", stereo=given)
+    assert demo.matcher() is given and demo.matcher_options() == {"lr_check": True}
+    assert demo.method == "birchfield" and DemoOptions(stereo=SgbmOptions()).method == "sgbm"
+    with pytest.raises(ConfigError, match="does not take SgbmOptions"):
+        DemoOptions(method="birchfield", stereo=SgbmOptions()).matcher()

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from armstereo.kinematics import ArmModel
+from armstereo.robot.arm_model import ArmModel
 
 # The board most tests calibrate with: 16x11 = 176 inner corners of 16 mm, 27 x 19 cm.
 BOARD_SPEC = "chessboard:17x12:0.016"

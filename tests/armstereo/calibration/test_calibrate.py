@@ -20,8 +20,8 @@ from armstereo.calibration.mount_file import truth_error
 from armstereo.calibration.report import report_lines
 from armstereo.calibration.synthetic import simulate_session
 from armstereo.errors import ConfigError
-from armstereo.kinematics import ready_configuration
 from armstereo.mount import CameraMount
+from armstereo.robot.arm_model import ready_configuration
 
 from .conftest import BOARD_SPEC
 

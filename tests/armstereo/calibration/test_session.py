@@ -18,8 +18,8 @@ from armstereo.calibration.synthetic import simulate_session
 from armstereo.capture.run import model_metadata
 from armstereo.devices import Frame
 from armstereo.errors import RecordingError
-from armstereo.kinematics import ArmModel
 from armstereo.recording import RecordingWriter
+from armstereo.robot.arm_model import ArmModel
 
 from .conftest import BOARD_SPEC
 
@@ -86,7 +86,7 @@ def test_recorded_calibrated_kinematics_are_rebuilt_exactly():
     import json
 
     from armstereo.calibration.session import recorded_arm_model
-    from armstereo.capture.kinematics import kinematics_metadata
+    from armstereo.robot.source import kinematics_metadata
     from armstereo.robot.synthetic import synthetic_calibration
 
     table = synthetic_calibration("ur5e", 3)

@@ -17,7 +17,7 @@ from armstereo.calibration.views import (
     plan_calibration_views,
 )
 from armstereo.errors import ConfigError, PreflightError
-from armstereo.kinematics import ArmModel, ready_configuration
+from armstereo.robot.arm_model import ArmModel, ready_configuration
 from armstereo.transforms import invert, make_T
 
 from .conftest import BOARD_SPEC

@@ -11,8 +11,8 @@ from armstereo.capture.session import confirm_live_motion
 from armstereo.cli.capture_cmd import ask_to_move
 from armstereo.cli.main import main
 from armstereo.errors import ConfigError, PreflightError, UserAbort
-from armstereo.kinematics import ArmModel
 from armstereo.recording import Recording
+from armstereo.robot.arm_model import ArmModel
 from drivers.mock.start_poses import table_start as mock_start_configuration
 
 

@@ -5,8 +5,8 @@ import numpy as np
 
 from armstereo.capture.plan import CaptureSettings, plan_capture
 from armstereo.cli.main import main
-from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
+from armstereo.robot.arm_model import ArmModel
 from drivers.mock.start_poses import table_start
 
 WIDE_ANGLE = """[hand_eye]

@@ -44,7 +44,7 @@ from armstereo.devices import (
     trapezoid_duration,
 )
 from armstereo.errors import ConfigError, IKError, PreflightError
-from armstereo.kinematics import ArmModel
+from armstereo.robot.arm_model import ArmModel
 from drivers.mock.start_poses import table_start
 from tests.support.properties import examples
 

@@ -33,7 +33,7 @@ from armstereo.errors import (
     ProtectiveStop,
     RecordingError,
 )
-from armstereo.kinematics import ArmModel
+from armstereo.robot.arm_model import ArmModel
 from drivers.mock.arm import MockArm
 from drivers.mock.start_poses import table_start
 from tests.support.properties import examples

@@ -16,8 +16,8 @@ from armstereo.capture.scan_plan import (
     plan_scan,
 )
 from armstereo.errors import ConfigError
-from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
+from armstereo.robot.arm_model import ArmModel
 from drivers.mock.start_poses import table_start as mock_start_configuration
 
 TARGET = np.array([-0.45, -0.13, 0.03])

@@ -18,8 +18,8 @@ from armstereo.capture import CaptureSettings, plan_capture
 from armstereo.capture.plan import parse_direction
 from armstereo.capture.session import capture_to_file, sigterm_as_interrupt
 from armstereo.errors import CameraTimeout, RecordingError, UserAbort
-from armstereo.kinematics import ArmModel
 from armstereo.recording import Recording, RecordingWriter
+from armstereo.robot.arm_model import ArmModel
 from drivers.mock.arm import MockArm
 from drivers.mock.camera import MockCamera
 from drivers.mock.start_poses import table_start

@@ -12,8 +12,8 @@ from armstereo.capture.plan import CaptureSettings, Workspace
 from armstereo.capture.scan_plan import ScanPlan, ScanView, ViewLayout, plan_scan
 from armstereo.capture.tour import JOINT_PATH_STEP_RAD, joint_path, plan_tour
 from armstereo.errors import PreflightError
-from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
+from armstereo.robot.arm_model import ArmModel
 from drivers.mock.start_poses import table_start
 
 TARGET = np.array([-0.45, -0.13, 0.03])

@@ -14,8 +14,8 @@ from armstereo.capture.session import capture_to_file
 from armstereo.capture.view_tour import plan_view_tour, tour_settings
 from armstereo.devices import MAX_JOINT_SPEED, MotionLimits
 from armstereo.errors import CameraTimeout, ConfigError, PreflightError
-from armstereo.kinematics import ArmModel
 from armstereo.recording import Recording
+from armstereo.robot.arm_model import ArmModel
 from drivers.mock.start_poses import table_start
 
 SLOW = MotionLimits(linear_speed=0.05, linear_acceleration=0.25)

@@ -12,8 +12,8 @@ import pytest
 from armstereo.cli.main import main
 from armstereo.io.ply import write_ply
 from armstereo.recording import RecordingWriter
+from armstereo.scene.synthetic import default_truth, scan
 from armstereo.transforms import rot_x
-from tests.armstereo.scene.synth import default_truth, scan
 
 SAMPLE = Path(__file__).parents[3] / "recordings" / "sample.mcap"
 

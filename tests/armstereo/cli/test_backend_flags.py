@@ -8,8 +8,8 @@ import pytest
 from armstereo import backends
 from armstereo.cli.backend_flags import add_backend_flags, backend_choice
 from armstereo.errors import ConfigError
-from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
+from armstereo.robot.arm_model import ArmModel
 
 
 def parse(*argv: str, defaults=None):

@@ -14,9 +14,10 @@ import pytest
 from armstereo.calibration.mount_file import truth_error
 from armstereo.calibration.session import mock_true_mount, read_calibration_session
 from armstereo.cli.main import main
-from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
 from armstereo.recording import Recording
+from armstereo.robot.arm_model import ArmModel
+from bench.harness import capture_and_score
 
 BOARD = "chessboard:17x12:0.016"
 # Issue 12's targets on the mock: realistic profile, and the ideal one.
@@ -199,42 +200,6 @@ def test_predicted_error_is_within_a_factor_two_of_the_true_error(realistic, tmp
         predicted = np.sqrt(np.mean([r["quality"]["predicted_error"][key] ** 2
                                      for r in reports]))
         assert 0.5 <= true / predicted <= 2.0, (key, true, predicted)
-
-
-def capture_and_score(folder: Path, believed: CameraMount, profile: str,
-                      seed: int) -> tuple[float, float]:
-    """Capture a pair of the cell (profile, seed) with the software believing ``believed``
-    (the cell's camera is its own whatever the software believes), reconstruct it (StereoSGBM,
-    photometric correction from the recorded mount file) and score it against the mock's
-    truth: (median |relative depth error|, median point distance to the true surfaces, mm)."""
-    from armstereo import backends
-    from armstereo.apps.demo import point_error_mm, score_reconstruction
-    from armstereo.capture import CaptureSettings, plan_capture
-    from armstereo.capture.kinematics import choose_kinematics
-    from armstereo.capture.run import model_metadata
-    from armstereo.capture.session import capture_to_file
-    from armstereo.photometric.correct import for_recording
-    from armstereo.reconstruct.pipeline import reconstruct_pair
-
-    path = folder / f"{believed.name}.mcap"
-    given = ArmModel.load("ur5e", mount=believed)
-    arm_cfg = backends.arm_config("mock", profile=profile, seed=seed)
-    cam_cfg = backends.camera_config("mock", profile=profile, seed=seed)
-    with backends.build_arm("mock", arm_cfg, given) as arm:
-        kinematics = choose_kinematics(given, arm, live=False)
-        model = kinematics.model
-        settings = CaptureSettings(baseline=0.08, direction=np.array([1.0, 0.0, 0.0]))
-        plan = plan_capture(model, arm.joint_positions(), settings)
-        with backends.build_camera("mock", cam_cfg, model, arm) as camera:
-            capture_to_file(arm, camera, model, plan, path,
-                            {**model_metadata(model), **kinematics.metadata()}, progress=None)
-    recording = Recording.open(path)
-    assert recording.metadata["mock_cell"] == f"{profile} seed {seed}"
-    recon = reconstruct_pair(recording[0], method="sgbm",
-                             photometric=for_recording(True, recording.metadata))
-    depth = score_reconstruction(recon.depth_original, recording[0], swapped=recon.swapped)
-    points = point_error_mm(recon.points_base, recording.metadata)
-    return depth.median_abs_rel_depth_error, points["median"]
 
 
 def test_a_mount_file_from_calibrate_makes_capture_on_the_cell_more_accurate(realistic,

@@ -10,7 +10,7 @@ import pytest
 
 from armstereo.cli import capture_cmd
 from armstereo.cli.main import main
-from armstereo.kinematics import ArmModel
+from armstereo.robot.arm_model import ArmModel
 from drivers.mock.arm import MockArm
 from drivers.mock.start_poses import table_start
 

@@ -21,10 +21,10 @@ import pytest
 from armstereo.cli.main import build_parser, main
 from armstereo.evaluation.scene_truth import SceneTruth
 from armstereo.io.ply import write_ply
-from tests.armstereo.scene import synth
+from armstereo.scene import synthetic as synth
 from tests.support import DATA, MIDDLEBURY, SAMPLE_RECORDING
 
-DOCUMENTED_EXIT_CODES = {0, 2, 3, 4, 5, 6, 130}  # README, "Errors and exit codes"
+DOCUMENTED_EXIT_CODES = {0, 2, 3, 4, 5, 6, 130}  # docs/commands.md §2 (and the README)
 HOSTILE = ["0", "-1", "nan", "inf", "1e308", "", "abc", "{missing}", "{dir}", "{text}"]
 TSUKUBA = MIDDLEBURY / "tsukuba"
 TEMPLE = DATA / "temple_ring"

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from armstereo.cli.main import main
-from armstereo.kinematics import ready_configuration
+from armstereo.robot.arm_model import ready_configuration
 from armstereo.robot.dh import fk, fk_difference, nominal_table
 from armstereo.robot.model_file import load_arm_model, load_model_file
 from armstereo.robot.synthetic import synthetic_calibration

@@ -13,9 +13,9 @@ from pathlib import Path
 import numpy as np
 
 from armstereo.clock import SimClock
-from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
 from armstereo.recording import RecordingWriter
+from armstereo.robot.arm_model import ArmModel
 from armstereo.transforms import invert, make_T, rot_x, rot_y, rot_z
 from drivers.mock.camera import MockCamera
 from drivers.mock.scene import default_table_scene

@@ -9,7 +9,7 @@ import pytest
 from armstereo.errors import ConfigError
 from armstereo.evaluation.scene_score import score_scene
 from armstereo.evaluation.scene_truth import SceneTruth
-from tests.armstereo.scene.synth import box, cylinder, sphere, table
+from armstereo.scene.synthetic import box, cylinder, sphere, table
 
 
 def _truth() -> SceneTruth:

@@ -42,8 +42,8 @@ def ring_frames(n: int = 8, *, elevation_deg: float = 55.0, radius: float = 0.45
 
 def small_model():
     """UR5e with the default mount's hand-eye but the SMALL camera (fast to render and match)."""
-    from armstereo.kinematics import ArmModel
     from armstereo.mount import CameraMount
+    from armstereo.robot.arm_model import ArmModel
 
     default = CameraMount.load(None)
     mount = CameraMount("small_test_camera", default.T_flange_camera, SMALL, default.source)

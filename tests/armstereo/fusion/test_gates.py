@@ -20,10 +20,10 @@ from armstereo.apps.scan import ScanRequest, record_scan
 from armstereo.evaluation.scene_score import score_scene
 from armstereo.evaluation.scene_truth import SceneTruth
 from armstereo.fusion.run import FusionOptions, fuse_recording
-from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
 from armstereo.reconstruct.stereo import CLEAN_PHOTO_CHECK
 from armstereo.recording import Recording
+from armstereo.robot.arm_model import ArmModel
 from armstereo.scene.analysis import SceneOptions, analyze_scene
 from armstereo.scene.cloud import load_cloud
 from tests.armstereo.fusion.synthetic import TARGET

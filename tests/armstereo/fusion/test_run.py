@@ -15,6 +15,7 @@ from armstereo.fusion.mesh_ply import read_mesh_ply
 from armstereo.fusion.run import FusionOptions, fuse_recording
 from armstereo.fusion.tsdf import Roi
 from armstereo.io.ply import read_ply
+from armstereo.reconstruct.stereo_options import BirchfieldOptions, SgbmOptions
 from armstereo.recording import Recording, RecordingWriter
 from tests.armstereo.fusion.synthetic import ROI, record_small_scan
 
@@ -49,6 +50,8 @@ def test_outputs_and_report(fused):
     assert report["voxels"] == int(np.prod(report["voxel_grid"]))
     assert report["memory_mb"]["tsdf"] > 0 and report["memory_mb"]["peak_rss"] > 0
     assert [p["pair"] for p in report["pairs"]] == [0, 1, 2, 3]
+    assert report["matcher"] == {"method": "birchfield",
+                                 "options": BirchfieldOptions().as_dict()}
     assert all(p["voxels_updated"] > 0 and p["mesh_vertices_seen"] > 0 and p["points"] > 0
                for p in report["pairs"])
 
@@ -96,6 +99,7 @@ def test_mcap_shows_mesh_cloud_and_tour(fused):
                       TOPIC_VIEWS: "foxglove.SceneUpdate", TOPIC_TF: "foxglove.FrameTransforms"}
     assert counts[TOPIC_TF] == 2 * report["views"]  # both views of every pair
     assert meta["armstereo"]["kind"] == "fusion"
+    assert json.loads(meta["armstereo"]["matcher"]) == report["matcher"]
 
 
 def test_truth_can_be_given_and_is_optional(scan, tmp_path):
@@ -131,9 +135,19 @@ def test_roi_in_view_without_surface_is_a_config_error(scan, tmp_path):
 
 def test_bad_options_are_config_errors(scan, tmp_path):
     for options in (FusionOptions(voxel=0.0), FusionOptions(trunc=0.001),
-                    FusionOptions(depth_source="lidar"), FusionOptions(workers=0)):
+                    FusionOptions(depth_source="lidar"), FusionOptions(workers=0),
+                    FusionOptions(method="bm"), FusionOptions(method="birchfield",
+                                                              stereo=SgbmOptions())):
         with pytest.raises(ConfigError):
             fuse_recording(scan, tmp_path / "out", options)
+
+
+def test_the_matcher_comes_from_the_options_object_or_the_method():
+    assert FusionOptions().method == "birchfield" and FusionOptions().matcher == BirchfieldOptions()
+    assert FusionOptions(stereo=SgbmOptions()).method == "sgbm"
+    assert FusionOptions(method="sgbm").matcher == SgbmOptions()
+    assert (FusionOptions(stereo_options={"photo_check": 4.0}).matcher
+            == BirchfieldOptions(photo_check=4.0))
 
 
 @pytest.mark.slow

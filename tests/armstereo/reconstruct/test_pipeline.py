@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 
 import cv2
@@ -19,6 +20,7 @@ from armstereo.mount import CameraMount
 from armstereo.reconstruct.outputs import write_outputs
 from armstereo.reconstruct.pipeline import reconstruct_pair
 from armstereo.reconstruct.rectify import rectified_geometry
+from armstereo.reconstruct.stereo_options import BirchfieldOptions, SgbmOptions
 from armstereo.reconstruct.window import choose_window as plan_disparity
 from armstereo.recording import Recording, RecordingWriter
 from armstereo.transforms import invert, make_T, rot_x, rot_z
@@ -153,6 +155,24 @@ def test_write_outputs(recon, tmp_path):
     assert len(out) == 1 and len(out.point_clouds) == 1
     assert out.metadata["kind"] == "reconstruction"
     assert set(recon.timings_s) >= {"write", "write_extras"}
+    # the recording says how it was matched, every option of it
+    record = json.loads(out.metadata["matcher"])
+    assert record["method"] == "birchfield" == recon.method
+    assert BirchfieldOptions(**record["options"]) == recon.stereo == BirchfieldOptions()
+
+
+def test_the_matcher_options_object_or_the_old_dict_match_alike(recording):
+    pair = Recording.open(recording)[0]
+    by_object = reconstruct_pair(pair, stereo=BirchfieldOptions(subpixel="none"))
+    by_dict = reconstruct_pair(pair, stereo_options={"subpixel": "none"})
+    assert by_object.stereo == by_dict.stereo == BirchfieldOptions(subpixel="none")
+    np.testing.assert_array_equal(by_object.disparity, by_dict.disparity)
+    sgbm = reconstruct_pair(pair, stereo=SgbmOptions())
+    assert sgbm.method == "sgbm" and sgbm.stereo == SgbmOptions()
+    with pytest.raises(ConfigError, match="does not take SgbmOptions"):
+        reconstruct_pair(pair, method="birchfield", stereo=SgbmOptions())
+    with pytest.raises(ConfigError, match="not both"):
+        reconstruct_pair(pair, stereo=SgbmOptions(), stereo_options={})
 
 
 def test_pair_without_calibration_is_refused(tmp_path):
@@ -198,9 +218,9 @@ def test_pair_without_poses_is_refused(recording):
 
 
 @pytest.mark.parametrize("argv, expected", [
-    (["--photo-check", "4"], {"photo_check": 4.0}),
-    ([], {}),
-    (["--photo-check", "4", "--method", "sgbm"], {}),  # a Birchfield-Tomasi option only
+    (["--photo-check", "4"], BirchfieldOptions(photo_check=4.0)),
+    ([], BirchfieldOptions()),
+    (["--photo-check", "4", "--method", "sgbm"], SgbmOptions()),  # a Birchfield-Tomasi option
 ])
 def test_cli_passes_the_photo_check_to_the_matcher(recording, tmp_path, monkeypatch, argv,
                                                    expected):
@@ -210,7 +230,7 @@ def test_cli_passes_the_photo_check_to_the_matcher(recording, tmp_path, monkeypa
     real = reconstruct_cmd.reconstruct_pair
 
     def spy(pair, **kwargs):
-        seen.append(kwargs["stereo_options"])
+        seen.append(kwargs["stereo"])
         return real(pair, **kwargs)
 
     monkeypatch.setattr(reconstruct_cmd, "reconstruct_pair", spy)

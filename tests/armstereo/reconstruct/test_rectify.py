@@ -11,6 +11,7 @@ import pytest
 from armstereo.camera_model import Intrinsics
 from armstereo.errors import StereoError
 from armstereo.reconstruct.rectify import (
+    RectificationPlan,
     factor_projection,
     fusiello,
     rectified_geometry,
@@ -362,6 +363,32 @@ def test_rectified_geometry_matches_rectify_pair_and_fusiello():
     img = np.zeros((480, 640), np.uint8)
     rp = rectify_pair(img, img, cam1[0], None, cam1[1], cam2[0], None, cam2[1])
     assert rp.size == geom.size and np.allclose(rp.rectification.H1, r.H1)
+
+
+def same_fields(a, b) -> bool:
+    """Dataclasses with array fields, field by field, exactly."""
+    return all(np.array_equal(getattr(a, f), getattr(b, f)) for f in a.__dataclass_fields__)
+
+
+def test_one_plan_gives_the_geometry_and_the_images_rectify_pair_gives():
+    cam1, cam2 = random_rig(9, (-1, 0.1, 0), skew=False)
+    intr1, intr2 = Intrinsics(*SIZE, cam1[0]), Intrinsics(*SIZE, cam2[0])
+    plan = RectificationPlan.from_views(intr1, cam1[1], intr2, cam2[1])
+    img1 = np.random.default_rng(1).integers(0, 256, (480, 640), dtype=np.uint8)
+    img2 = np.ascontiguousarray(img1[:, ::-1])
+    for depth_range in (None, (0.8, 3.0)):
+        geom, swapped = rectified_geometry(intr1, cam1[1], intr2, cam2[1],
+                                           depth_range=depth_range)
+        assert same_fields(plan.geometry(depth_range=depth_range), geom)
+        assert plan.swapped == swapped
+        rp = rectify_pair(img1, img2, cam1[0], None, cam1[1], cam2[0], None, cam2[1],
+                          depth_range=depth_range)
+        again = plan.rectify(img1, img2, depth_range=depth_range)
+        assert again.swapped and np.array_equal(again.left, rp.left)
+        assert np.array_equal(again.right_mask, rp.right_mask)
+        assert same_fields(again.geometry, rp.geometry)
+    with pytest.raises(StereoError, match="image is 320x480, its calibration 640x480"):
+        plan.rectify(img1[:, :320], img2)
 
 
 def test_depth_range_aligns_far_with_disparity_zero():

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from armstereo.errors import StereoError
-from armstereo.reconstruct import consensus, stereo
+from armstereo.reconstruct import consensus, rejection
 from armstereo.reconstruct.stereo import birchfield
 from tests.support.images import texture
 
-RUN = 20  # pixels: longer than the one-sided reach of stereo._unsupported
+RUN = 20  # pixels: longer than the one-sided reach of rejection.unsupported
 
 
 def flat_strip_from_the_border():
@@ -27,8 +27,8 @@ def flat_strip_from_the_border():
 
 def test_column_support_keeps_a_flat_run_its_column_confirms():
     disp, flat = flat_strip_from_the_border()
-    row_only = stereo._unsupported(disp, flat, stereo.FLAT_TOLERANCE, columns=False)
-    with_columns = stereo._unsupported(disp, flat, stereo.FLAT_TOLERANCE, columns=True)
+    row_only = rejection.unsupported(disp, flat, rejection.FLAT_TOLERANCE, columns=False)
+    with_columns = rejection.unsupported(disp, flat, rejection.FLAT_TOLERANCE, columns=True)
     assert row_only[3, :RUN].all()  # no textured pixel left of the run on its row
     assert not with_columns.any()  # the textured pixels above and below agree
 
@@ -36,7 +36,7 @@ def test_column_support_keeps_a_flat_run_its_column_confirms():
 def test_column_support_still_rejects_what_its_column_contradicts():
     disp, flat = flat_strip_from_the_border()
     disp[3, :RUN] = 14.0  # the run invented a nearer surface than the rows around it
-    assert stereo._unsupported(disp, flat, stereo.FLAT_TOLERANCE, columns=True)[3, :RUN].all()
+    assert rejection.unsupported(disp, flat, rejection.FLAT_TOLERANCE, columns=True)[3, :RUN].all()
 
 
 def test_column_support_never_rejects_more_than_the_row_rule():
@@ -44,8 +44,8 @@ def test_column_support_never_rejects_more_than_the_row_rule():
     disp = rng.integers(0, 4, (30, 40)).astype(np.float32)
     disp[rng.random(disp.shape) < 0.1] = np.nan
     flat = rng.random(disp.shape) < 0.6
-    row_only = stereo._unsupported(disp, flat, stereo.FLAT_TOLERANCE, columns=False)
-    with_columns = stereo._unsupported(disp, flat, stereo.FLAT_TOLERANCE, columns=True)
+    row_only = rejection.unsupported(disp, flat, rejection.FLAT_TOLERANCE, columns=False)
+    with_columns = rejection.unsupported(disp, flat, rejection.FLAT_TOLERANCE, columns=True)
     assert not (with_columns & ~row_only).any()
     assert (row_only & ~with_columns).any()
 

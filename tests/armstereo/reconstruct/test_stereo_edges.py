@@ -12,7 +12,7 @@ import pytest
 from armstereo.errors import StereoError
 from armstereo.evaluation.disparity import evaluate_disparity
 from armstereo.io.disparity import read_disparity
-from armstereo.reconstruct import stereo
+from armstereo.reconstruct import rejection, stereo, stereo_inputs
 from armstereo.reconstruct.stereo import PAPER_OPTIONS, birchfield
 from tests.support import MIDDLEBURY
 from tests.support.images import box_pair, texture
@@ -28,7 +28,7 @@ def test_edges_adds_the_clipped_horizontal_sobel_and_saturates(cap):
     for dy, weight in ((0, 1), (1, 2), (2, 1)):
         sobel += weight * (g[dy:dy + 30, 2:] - g[dy:dy + 30, :-2])
     want = np.clip(grey + np.clip(sobel, -cap, cap), 0, 255)
-    np.testing.assert_array_equal(stereo._with_edges(grey, cap), want.astype(np.uint8))
+    np.testing.assert_array_equal(stereo_inputs.with_edges(grey, cap), want.astype(np.uint8))
 
 
 def test_the_edge_prefilter_applies_to_grey_matching_only_and_needs_a_positive_cap():
@@ -101,7 +101,7 @@ def row_with_a_nearer_box():
 
 @pytest.mark.parametrize("margin, hidden", [(1.0, [17, 18, 19]), (3.0, [19]), (5.0, [])])
 def test_the_occlusion_margin_is_how_far_behind_a_hidden_pixel_must_project(margin, hidden):
-    got = np.flatnonzero(stereo._hidden_by_nearer(row_with_a_nearer_box(), margin)[0])
+    got = np.flatnonzero(rejection.hidden_by_nearer(row_with_a_nearer_box(), margin)[0])
     np.testing.assert_array_equal(got, hidden)
 
 

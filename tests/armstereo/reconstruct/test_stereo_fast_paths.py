@@ -11,7 +11,7 @@ import cv2
 import numpy as np
 import pytest
 
-from armstereo.reconstruct import consensus, stereo
+from armstereo.reconstruct import consensus, rejection, stereo
 from tests.support.images import box_pair
 
 SEED = 14
@@ -119,10 +119,10 @@ def test_flat_test_equals_rows_and_transposed_rows(tolerance):
         disp += rng.choice(np.float32([0, 0.5, 1, 1.5, 3]), shape) * (rng.random(shape) < 0.3)
         disp[rng.random(shape) < rng.random() * 0.4] = np.nan
         flat = blocky(rng, shape, 0, rng.random()) ^ (rng.random(shape) < 0.05)
-        rows = stereo._unsupported(disp, flat, tolerance)
-        columns = stereo._unsupported(np.ascontiguousarray(disp.T), np.ascontiguousarray(flat.T),
+        rows = rejection.unsupported(disp, flat, tolerance)
+        columns = rejection.unsupported(np.ascontiguousarray(disp.T), np.ascontiguousarray(flat.T),
                                       tolerance).T
-        both = stereo._unsupported(disp, flat, tolerance, columns=True)
+        both = rejection.unsupported(disp, flat, tolerance, columns=True)
         np.testing.assert_array_equal(both, rows & columns)
         assert not (rows & ~flat).any()  # only flat pixels are ever rejected
 

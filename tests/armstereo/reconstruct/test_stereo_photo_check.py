@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from armstereo.errors import StereoError
-from armstereo.reconstruct import stereo
+from armstereo.reconstruct import rejection
 from armstereo.reconstruct.stereo import CLEAN_PHOTO_CHECK, birchfield
 from tests.support.images import box_pair as textured_box_pair
 from tests.support.images import texture
@@ -55,7 +55,7 @@ def test_a_fattened_foreground_is_rejected_on_the_strip_only():
     width = d_fg - d_bg
     disp = np.full(left.shape, np.float32(d_bg))
     disp[y0:y1, x0 - width:x1] = d_fg  # the box's disparity carried across the strip
-    bad = stereo._photo_inconsistent(left, right, disp, CLEAN_PHOTO_CHECK)
+    bad = rejection.photo_inconsistent(left, right, disp, CLEAN_PHOTO_CHECK)
     rows = slice(y0 + 2, y1 - 2)
     assert bad[rows, x0 - width + 1:x0 - 1].mean() > 0.9
     assert bad[rows, x0 + 2:x1 - 2].mean() < 0.01

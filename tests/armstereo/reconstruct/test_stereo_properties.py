@@ -16,11 +16,12 @@ from hypothesis import given
 from hypothesis import settings as hyp_settings
 from hypothesis import strategies as st
 
-from armstereo.reconstruct.birchfield.aggregate import match_image_aggregated
-from armstereo.reconstruct.birchfield.dp_pruned import BORDER
-from armstereo.reconstruct.birchfield.matcher import DP_EXACT, DP_PRUNED, match_image
+from armstereo.reconstruct.birchfield.common.states import BORDER
+from armstereo.reconstruct.birchfield.paper.matcher import DP_EXACT, DP_PRUNED, match_image
 from armstereo.reconstruct.birchfield.refine import left_right_mismatch
-from armstereo.reconstruct.stereo import PAPER_OPTIONS, SUBPIXEL_MAX_SHIFT, birchfield
+from armstereo.reconstruct.birchfield.window.aggregate import match_image_aggregated
+from armstereo.reconstruct.stereo import PAPER_OPTIONS, birchfield
+from armstereo.reconstruct.subpixel import SUBPIXEL_MAX_SHIFT
 from tests.armstereo.reconstruct.test_stereo import fractional_pair, shifted_pair
 from tests.support.images import box_pair
 from tests.support.properties import examples

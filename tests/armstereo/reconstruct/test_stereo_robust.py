@@ -15,16 +15,17 @@ from armstereo.cli.main import main
 from armstereo.errors import StereoError
 from armstereo.evaluation.disparity import evaluate_disparity
 from armstereo.io.disparity import read_disparity
-from armstereo.reconstruct import stereo
-from armstereo.reconstruct.birchfield import aggregate, jit
-from armstereo.reconstruct.birchfield.aggregate import (
+from armstereo.reconstruct import rejection, stereo
+from armstereo.reconstruct.birchfield.common import jit
+from armstereo.reconstruct.birchfield.common.states import BORDER
+from armstereo.reconstruct.birchfield.paper.matcher import match_image
+from armstereo.reconstruct.birchfield.window import aggregate
+from armstereo.reconstruct.birchfield.window.aggregate import (
     cost_divisor,
     fill_outside,
     match_image_aggregated,
 )
-from armstereo.reconstruct.birchfield.dp_pruned import BORDER
-from armstereo.reconstruct.birchfield.lanes import LANES
-from armstereo.reconstruct.birchfield.matcher import match_image
+from armstereo.reconstruct.birchfield.window.lanes import LANES
 from armstereo.reconstruct.stereo import PAPER_OPTIONS, birchfield
 from tests.support import MIDDLEBURY
 from tests.support.images import box_pair, texture
@@ -191,7 +192,7 @@ def test_a_flat_wall_between_agreeing_edges_keeps_its_disparity():
     """Flat pixels are kept where the textured pixels on both sides of them agree."""
     row = np.array([[5.0, 5.0, 5.0, 5.0, 5.0, 9.0, 9.0, 9.0, np.nan, 4.0]], np.float32)
     flat = np.array([[0, 1, 1, 0, 1, 1, 1, 0, 0, 1]], bool)
-    out = stereo._unsupported(np.repeat(row, 2, 0), np.repeat(flat, 2, 0), 1.0)[0]
+    out = rejection.unsupported(np.repeat(row, 2, 0), np.repeat(flat, 2, 0), 1.0)[0]
     # 1, 2: between anchors at 5 and 5; 4: between 5 and 9 at 5, but the anchors disagree;
     # 5, 6: likewise; 9: alone after a NaN gap, no anchor at all in its run
     np.testing.assert_array_equal(out, [0, 0, 0, 0, 1, 1, 1, 0, 0, 1])
@@ -199,7 +200,7 @@ def test_a_flat_wall_between_agreeing_edges_keeps_its_disparity():
 
 def test_hidden_by_nearer_marks_the_strip_a_nearer_pixel_covers():
     row = np.array([[3, 3, 3, 3, 3, 6, 6, 6]], np.float32)  # x - d: -3 .. 1, then -1, 0, 1
-    hidden = stereo._hidden_by_nearer(row, 1.0)[0]
+    hidden = rejection.hidden_by_nearer(row, 1.0)[0]
     # x = 3, 4 land on right pixels the nearer x = 5 .. 7 take; x = 2 ties within the margin
     np.testing.assert_array_equal(hidden, [0, 0, 0, 1, 1, 0, 0, 0])
 
@@ -227,10 +228,10 @@ def test_partners_in_a_right_masks_fill_are_rejected_whatever_the_masks_shape():
     runs[3] = False  # an empty row is still one run (of nothing)
     holes = runs.copy()
     holes[::2, 15:18] = False
-    assert stereo._single_runs(runs) is not None and stereo._single_runs(holes) is None
+    assert rejection.single_runs(runs) is not None and rejection.single_runs(holes) is None
     for rmask in (runs, holes, np.ones((H, W), bool)):
         out = disp.copy()
-        stereo._reject_invalid_partners(out, rmask, top)
+        rejection.reject_invalid_partners(out, rmask, top)
         expected = np.where(_partners_outside(disp, rmask), np.float32(np.nan), disp)
         np.testing.assert_array_equal(out, expected)
 

@@ -7,6 +7,7 @@ from armstereo import reconstruct_views
 from armstereo.errors import ConfigError, StereoError
 from armstereo.kinematics import ArmModel
 from armstereo.mount import CameraMount
+from armstereo.reconstruct.stereo_options import SgbmOptions
 from armstereo.transforms import make_T
 from drivers.mock.scene import default_table_scene
 from drivers.mock.start_poses import table_start
@@ -73,3 +74,23 @@ def test_bad_poses_are_refused(views):
         reconstruct_views(img1, img2, K, K, T1, np.diag([1.0, 1.0, -1.0, 1.0]))
     with pytest.raises(StereoError):
         reconstruct_views(img1, img2, K, K, T1, T1)  # no baseline
+
+
+def test_the_pair_is_planned_once(views, monkeypatch):
+    """The poses are checked and the rectification solved once per pair, not once for the
+    depth range and again for the images."""
+    from armstereo.reconstruct import rectify
+
+    calls = {"solve": 0, "as_rigid": 0}
+
+    def counted(name, real):
+        def spy(*args, **kwargs):
+            calls[name] += 1
+            return real(*args, **kwargs)
+        return spy
+
+    monkeypatch.setattr(rectify, "_solve", counted("solve", rectify._solve))
+    monkeypatch.setattr(rectify, "as_rigid", counted("as_rigid", rectify.as_rigid))
+    img1, img2, K, T1, T2, _ = views
+    reconstruct_views(img1, img2, K, K, T1, T2, stereo=SgbmOptions())
+    assert calls == {"solve": 1, "as_rigid": 2}

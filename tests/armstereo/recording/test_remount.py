@@ -13,7 +13,6 @@ from armstereo import backends
 from armstereo.apps.demo import score_reconstruction
 from armstereo.calibration.mount_file import mount_toml
 from armstereo.capture import CaptureSettings, plan_capture
-from armstereo.capture.kinematics import choose_kinematics
 from armstereo.capture.run import model_metadata
 from armstereo.capture.session import capture_to_file
 from armstereo.cli.main import main
@@ -23,6 +22,7 @@ from armstereo.photometric.correct import PhotometricOptions
 from armstereo.reconstruct.pipeline import reconstruct_pair
 from armstereo.recording import Recording
 from armstereo.recording.remount import remounted
+from armstereo.robot.source import choose_kinematics
 
 
 @pytest.fixture(scope="module")

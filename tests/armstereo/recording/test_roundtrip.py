@@ -12,7 +12,7 @@ from armstereo.devices import Frame
 from armstereo.errors import ConfigError, RecordingError
 from armstereo.recording import Recording, RecordingWriter
 from armstereo.recording import schemas as S
-from armstereo.recording.writer import _signals_deferred
+from armstereo.recording.crash_safe import signals_deferred as _signals_deferred
 from tests.support.recordings import (
     BASELINE,
     JOINTS,

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from armstereo.errors import ConfigError
-from armstereo.kinematics import MODEL_NAMES, ArmModel
+from armstereo.robot.arm_model import MODEL_NAMES, ArmModel
 from armstereo.robot.dh import (
     NOMINAL_MODELS,
     DHTable,

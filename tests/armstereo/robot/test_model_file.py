@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from armstereo.errors import ConfigError
-from armstereo.kinematics import ArmModel
+from armstereo.robot.arm_model import ArmModel
 from armstereo.robot.dh import fk, nominal_table, ur_calibration_hash
 from armstereo.robot.model_file import (
     FORMAT,

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from armstereo.errors import ConfigError
-from armstereo.kinematics import MODEL_NAMES, ArmModel, ready_configuration
+from armstereo.robot.arm_model import MODEL_NAMES, ArmModel, ready_configuration
 from armstereo.robot.dh import fk, nominal_table
 from armstereo.robot.pinocchio_dh import joint_placements
 from armstereo.robot.synthetic import synthetic_calibration

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from armstereo.kinematics import MODEL_NAMES
+from armstereo.robot.arm_model import MODEL_NAMES
 from armstereo.robot.dh import (
     DHTable,
     fk,

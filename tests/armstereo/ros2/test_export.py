@@ -18,6 +18,7 @@ from armstereo.ros2 import types as R
 from armstereo.ros2.export import ExportOptions, export_recording
 from armstereo.scene import analyze_scene
 from armstereo.scene.foxglove import write_scene_mcap
+from armstereo.scene.synthetic import default_truth, scan
 from tests.armstereo.ros2.conftest import run
 from tests.armstereo.ros2.readback import (
     load_yaml,
@@ -27,7 +28,6 @@ from tests.armstereo.ros2.readback import (
     stamp_ns,
     store_types,
 )
-from tests.armstereo.scene.synth import default_truth, scan
 from tests.support import SAMPLE_RECORDING
 from tests.support.recordings import JOINTS, small_intrinsics, synthetic_views
 

@@ -13,8 +13,8 @@ from armstereo.evaluation.scene_score import score_scene
 from armstereo.evaluation.scene_truth import SceneTruth
 from armstereo.scene import SceneCloud, SceneOptions, analyze_scene
 from armstereo.scene.export import scene_json
+from armstereo.scene.synthetic import default_truth, scan, table
 from armstereo.transforms import rot_x
-from tests.armstereo.scene.synth import default_truth, scan, table
 
 
 @pytest.fixture(scope="module")

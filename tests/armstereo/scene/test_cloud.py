@@ -12,7 +12,7 @@ from armstereo.errors import ConfigError, RecordingError
 from armstereo.io.ply import write_ply
 from armstereo.recording import RecordingWriter
 from armstereo.scene import SceneCloud, check_cloud, load_cloud
-from tests.armstereo.scene.synth import default_truth, scan
+from armstereo.scene.synthetic import default_truth, scan
 
 SAMPLE = Path(__file__).parents[3] / "recordings" / "sample.mcap"  # a capture: no /points
 

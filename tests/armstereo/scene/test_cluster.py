@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from armstereo.scene.cluster import NOISE, voxel_clusters
-from tests.armstereo.scene.synth import default_truth, scan
+from armstereo.scene.synthetic import default_truth, scan
 
 
 def _patch(centre, half, spacing=0.001):

@@ -18,7 +18,7 @@ from mcap_protobuf.decoder import DecoderFactory
 from armstereo.scene import analyze_scene, load_cloud
 from armstereo.scene.export import SCENE_FILES, analyze_points, write_scene_outputs
 from armstereo.scene.heightmap import OCCUPIED
-from tests.armstereo.scene.synth import default_truth, scan
+from armstereo.scene.synthetic import default_truth, scan
 
 TS_DIR = Path(__file__).parents[2] / "ts_reader"
 

@@ -9,8 +9,8 @@ import pytest
 
 from armstereo.scene.errors import SceneError
 from armstereo.scene.plane import fit_support_plane, plane_frame
+from armstereo.scene.synthetic import box, default_truth, scan, table
 from armstereo.transforms import make_T, rot_x
-from tests.armstereo.scene.synth import box, default_truth, scan, table
 
 
 def _tilted(points: np.ndarray, deg: float) -> np.ndarray:

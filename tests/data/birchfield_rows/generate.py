@@ -13,7 +13,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from armstereo.reconstruct.birchfield.aggregate import match_image_aggregated
+from armstereo.reconstruct.birchfield.window.aggregate import match_image_aggregated
 
 HERE = Path(__file__).resolve().parent
 CONES = HERE.parent / "middlebury" / "cones"

@@ -34,8 +34,9 @@ from armstereo.robot.dh import nominal_table
 from armstereo.transforms import make_T, rot_x, rot_y, rot_z, ur_pose_from_T
 from drivers.ur import arm as arm_module
 from drivers.ur import primary, probe
-from drivers.ur.arm import RECEIVE_VARIABLES, URArm
+from drivers.ur.arm import URArm
 from drivers.ur.channel import ControlChannel
+from drivers.ur.connect import RECEIVE_VARIABLES
 from drivers.ur.probe import ControllerInfo
 
 HOST = "192.0.2.10"  # TEST-NET-1: never a real controller
@@ -420,7 +421,7 @@ def test_fk_cross_check_is_tight_once_the_controllers_table_was_read(ctl, monkey
                                 calibration_status=2)
     read = primary.ArmKinematics(table, None, ())
     monkeypatch.setattr(arm_module, "read_arm_kinematics", lambda host, model, timeout: read)
-    monkeypatch.setattr("armstereo.kinematics.ArmModel.from_dh",
+    monkeypatch.setattr("armstereo.robot.arm_model.ArmModel.from_dh",
                         classmethod(lambda cls, table, mount=None: FakeModel()))
     ctl.tcp_offset_error = np.array([offset_m, 0, 0, 0, 0, 0])
     with caplog.at_level(logging.WARNING, logger="drivers.ur.arm"):

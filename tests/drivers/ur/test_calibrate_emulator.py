@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from armstereo.devices import MotionLimits
-from armstereo.kinematics import ArmModel
 from armstereo.recording import Recording
+from armstereo.robot.arm_model import ArmModel
 from armstereo.robot.synthetic import synthetic_calibration
 from drivers.mock.start_poses import table_start
 from tests.rtde_emulator import DEFAULT_CALIBRATION_SEED

@@ -22,7 +22,7 @@ MOTION_ACCELERATION = 0.1    # m/s^2
 @pytest.fixture
 def arm(ur_host, request):
     # Imported here so collecting this file needs neither the kinematics nor a robot.
-    from armstereo.kinematics import ArmModel
+    from armstereo.robot.arm_model import ArmModel
     from drivers.ur.arm import URArm
 
     model = ArmModel.load(request.config.getoption("--ur-model", default="ur5e"))

@@ -31,9 +31,9 @@ from armstereo.errors import (
     MotionTimeout,
     ProtectiveStop,
 )
-from armstereo.kinematics import ArmModel
 from armstereo.recording import Recording
 from armstereo.recording.inspect import summarize
+from armstereo.robot.arm_model import ArmModel
 from armstereo.robot.dh import pose_difference
 from armstereo.robot.synthetic import synthetic_calibration
 from drivers.mock.start_poses import table_start as mock_start_configuration

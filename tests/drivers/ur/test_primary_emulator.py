@@ -10,7 +10,7 @@ import time
 import numpy as np
 import pytest
 
-from armstereo.kinematics import ArmModel, ready_configuration
+from armstereo.robot.arm_model import ArmModel, ready_configuration
 from armstereo.robot.dh import fk, nominal_table, pose_difference
 from armstereo.transforms import T_from_ur_pose, make_T
 from drivers.ur.arm import URArm

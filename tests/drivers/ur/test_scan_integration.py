@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from armstereo.cli.main import main
-from armstereo.kinematics import ArmModel
 from armstereo.recording import Recording
+from armstereo.robot.arm_model import ArmModel
 from armstereo.robot.dh import pose_difference
 from armstereo.robot.synthetic import synthetic_calibration
 from drivers.mock.start_poses import table_start

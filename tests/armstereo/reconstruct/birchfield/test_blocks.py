@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from armstereo.reconstruct.birchfield.blocks import _varies, longest_runs
-from armstereo.reconstruct.birchfield.cost import VARIATION_THRESHOLD, variation_flags
-from armstereo.reconstruct.birchfield.matcher import longest_run
+from armstereo.reconstruct.birchfield.common.cost import VARIATION_THRESHOLD, variation_flags
+from armstereo.reconstruct.birchfield.common.scanline import longest_run
+from armstereo.reconstruct.birchfield.window.blocks import longest_runs, variation_map
 
 
 def _masks(rng, H=40, W=23):
@@ -36,7 +36,7 @@ def test_variation_flags_match_the_kernel():
     img = rng.integers(0, 12, (40, 23), dtype=np.uint8)  # varies by 5 or not, about equally
     lo, hi = longest_runs(_masks(rng))
     for forward in (True, False):
-        got = _varies(img, lo, hi, forward)
+        got = variation_map(img, lo, hi, forward)
         for r in range(img.shape[0]):
             want = np.zeros(img.shape[1], bool)
             variation_flags(img[r][:, None], lo[r], hi[r], lo[r], hi[r], VARIATION_THRESHOLD,
@@ -44,7 +44,7 @@ def test_variation_flags_match_the_kernel():
             np.testing.assert_array_equal(got[r, lo[r]:hi[r]], want[lo[r]:hi[r]])
     lo, hi = np.zeros(40, np.int64), np.full(40, 23, np.int64)  # whole rows: the fast path
     for forward in (True, False):
-        got = _varies(img, lo, hi, forward)
+        got = variation_map(img, lo, hi, forward)
         for r in range(img.shape[0]):
             want = np.zeros(23, bool)
             variation_flags(img[r][:, None], 0, 23, 0, 23, VARIATION_THRESHOLD, forward, want, 0)

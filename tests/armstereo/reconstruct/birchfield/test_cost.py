@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from armstereo.reconstruct.birchfield.cost import scanline_dissimilarity, variation_flags
+from armstereo.reconstruct.birchfield.common.cost import scanline_dissimilarity, variation_flags
 
 
 def _rows(seed: int, n: int = 40):

@@ -10,22 +10,22 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from armstereo.reconstruct.birchfield.cost import (
+from armstereo.reconstruct.birchfield.common.cost import (
     INF,
     dissimilarity_table,
     row_bounds,
     variation_flags,
 )
-from armstereo.reconstruct.birchfield.dp_exact import scanline_dp_exact
-from armstereo.reconstruct.birchfield.dp_pruned import (
+from armstereo.reconstruct.birchfield.common.scanline import decode_matches
+from armstereo.reconstruct.birchfield.common.states import (
     BORDER,
     C0,
     MATCHED,
     NO_VARIATION_PENALTY,
     OCCLUDED,
-    decode_matches,
-    scanline_dp,
 )
+from armstereo.reconstruct.birchfield.paper.dp_exact import scanline_dp_exact
+from armstereo.reconstruct.birchfield.paper.dp_pruned import scanline_dp
 
 OCC, REW = 50, 10  # doubled units: the paper's 25 and 5
 

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 from numba import njit
 
-from armstereo.reconstruct.birchfield.aggregate import match_image_aggregated
-from armstereo.reconstruct.birchfield.simd import LANES, lanewise, vmax, vmin
+from armstereo.reconstruct.birchfield.window.aggregate import match_image_aggregated
+from armstereo.reconstruct.birchfield.window.simd import LANES, lanewise, vmax, vmin
 from tests.support import ROOT
 
 FIXTURE = ROOT / "tests" / "data" / "birchfield_rows"
