@@ -110,18 +110,21 @@ def equalize_exposure(left: np.ndarray, right: np.ndarray, max_disparity: int,
 
 def recorded_vignetting(metadata: dict[str, str]) -> Vignetting | None:
     """The camera's fall-off from a recording's metadata (the ``[vignetting]`` section of
-    the recorded ``mount_toml``), or None: a mount file without the section (older files, a
-    camera never photometrically calibrated) or a recording without a mount."""
+    the recorded ``mount_toml``, for the image size of its ``[camera]``), or None: a mount file
+    without the section (older files, a camera never photometrically calibrated), a recording
+    without a mount, or a section that cannot be read (the images are then matched as they
+    are)."""
     import tomllib
 
     from armstereo.errors import ArmstereoError
-    from armstereo.mount import CameraMount
 
     text = metadata.get("mount_toml", "")
     if "[vignetting]" not in text:
         return None
     try:
-        return CameraMount.from_dict(tomllib.loads(text), source=text).vignetting
+        doc = tomllib.loads(text)
+        width, height = int(doc["camera"]["width"]), int(doc["camera"]["height"])
+        return Vignetting.from_dict(doc["vignetting"], width, height)
     except (tomllib.TOMLDecodeError, ArmstereoError, KeyError, TypeError, ValueError):
         return None
 
