@@ -19,7 +19,7 @@ Tables: medians over the seeds, then per seed. Seeds 0-4 are the issue's; seeds 
 out (the cell's error sizes, the calibration's views and the photometric estimators were
 chosen looking at seeds 0-4 only).
 
-    .venv/bin/python bench/cell.py [--seeds 0 1 2 3 4] [--held-out 5 6 7 8 9]
+    .venv/bin/python -m bench.cell [--seeds 0 1 2 3 4] [--held-out 5 6 7 8 9]
         [--out bench/results/cell.md]
 """
 
@@ -49,6 +49,7 @@ from armstereo.photometric.correct import PhotometricOptions
 from armstereo.reconstruct.pipeline import reconstruct_pair
 from armstereo.recording import Recording
 from armstereo.recording.remount import remounted
+from bench.harness import machine_note, write_report
 
 METHODS = ("birchfield", "sgbm")
 VARIANTS = ("calibrated", "calibrated, no photometric", "bundled mount",
@@ -179,7 +180,7 @@ def main() -> int:
         print(f"seed {seed} done ({time.perf_counter() - t_start:.0f} s)", file=sys.stderr,
               flush=True)
     lines = ["# The realistic cell's workflow (bench/cell.py)", "",
-             f"`.venv/bin/python bench/cell.py --seeds {' '.join(map(str, args.seeds))} "
+             f"`.venv/bin/python -m bench.cell --seeds {' '.join(map(str, args.seeds))} "
              f"--held-out {' '.join(map(str, args.held_out))}`: per seed, the demo's "
              f"calibration ({DEMO_CALIBRATION_VIEWS} views of {DEMO_BOARD}, "
              f"{DEMO_CORNER_VIEWS} with the board in an image corner), one capture of the "
@@ -192,8 +193,8 @@ def main() -> int:
     if args.held_out:
         lines += section("Held-out seeds", [runs[s] for s in args.held_out])
     lines.append(f"{len(runs)} cells, {time.perf_counter() - t_start:.0f} s on a shared 2-core "
-                 "machine.")
-    Path(args.out).write_text("\n".join(lines) + "\n")
+                 "machine. " + machine_note())
+    write_report("\n".join(lines) + "\n", args.out, echo=False)
     if args.json:
         Path(args.json).write_text(json.dumps(list(runs.values()), indent=1) + "\n")
     print("\n".join(lines))

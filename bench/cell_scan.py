@@ -10,7 +10,7 @@ the mesh's mean distance to the true surfaces (accuracy), the share of the true 
 row of the same cell with every error source off but the desk (the matcher and the fusion
 alone, the camera's true mount).
 
-    .venv/bin/python bench/cell_scan.py [--seeds 0 1 2 3 4] [--views ring:12]
+    .venv/bin/python -m bench.cell_scan [--seeds 0 1 2 3 4] [--views ring:12]
         [--out bench/results/cell_scan.md]
 """
 
@@ -32,6 +32,7 @@ from armstereo.apps.scan_demo import TARGET_M, ScanDemoOptions
 from armstereo.fusion.run import FusionOptions, fuse_recording
 from armstereo.mount import CameraMount
 from armstereo.robot.model_file import load_arm_model
+from bench.harness import machine_note, write_report
 from drivers.mock.cell import cell_camera
 from drivers.mock.profile import (
     REALISTIC,
@@ -108,7 +109,7 @@ def main() -> int:
         print(f"seed {seed} done ({time.perf_counter() - t_start:.0f} s)", file=sys.stderr,
               flush=True)
     lines = ["# The realistic cell's scan (bench/cell_scan.py)", "",
-             f"`.venv/bin/python bench/cell_scan.py --seeds {' '.join(map(str, args.seeds))} "
+             f"`.venv/bin/python -m bench.cell_scan --seeds {' '.join(map(str, args.seeds))} "
              f"--views {args.views}`: per seed, the demo's calibration, the scan demo's "
              "viewpoints recorded with the calibrated mount file, fused at 2 mm. Accuracy: "
              "mean distance of the mesh to the true surfaces; complete: share of the true "
@@ -130,8 +131,8 @@ def main() -> int:
             f"{runs[s][r]['accuracy_mm']:.2f} / {runs[s][r]['complete_5mm']:.1f}"
             for r in ROWS) + " |")
     lines += ["", f"{len(args.seeds)} cells, {time.perf_counter() - t_start:.0f} s on a "
-              "shared 2-core machine."]
-    Path(args.out).write_text("\n".join(lines) + "\n")
+              "shared 2-core machine. " + machine_note()]
+    write_report("\n".join(lines) + "\n", args.out, echo=False)
     print("\n".join(lines))
     return 0
 

@@ -18,7 +18,7 @@ truth. Rows:
 Scores: median |relative depth error| on the pixels both views see, density, median point
 distance to the true surfaces; medians over the seeds with the range in brackets.
 
-    .venv/bin/python bench/error_budget_cell.py [--seeds 0 1 2 3 4]
+    .venv/bin/python -m bench.error_budget_cell [--seeds 0 1 2 3 4]
         [--out bench/results/error_budget_cell.md]
 """
 
@@ -40,6 +40,7 @@ from armstereo.photometric.correct import PhotometricOptions
 from armstereo.reconstruct.pipeline import reconstruct_pair
 from armstereo.recording import Recording
 from armstereo.recording.remount import remounted
+from bench.harness import machine_note, write_report
 from drivers.mock.profile import (
     REALISTIC,
     ArmResidual,
@@ -145,7 +146,7 @@ def main() -> int:
         print(f"{label} done ({time.perf_counter() - t_start:.0f} s)", file=sys.stderr,
               flush=True)
     lines = ["# Error budget on the calibrated workflow (realistic cell)", "",
-             f"`.venv/bin/python bench/error_budget_cell.py --seeds "
+             f"`.venv/bin/python -m bench.error_budget_cell --seeds "
              f"{' '.join(map(str, args.seeds))}`: per row and seed, the camera calibrated on "
              "that cell (the demo's 10 views, 4 in the corners), the desk pair captured with "
              "the mount file it wrote (80 mm baseline, 0.55 m), reconstructed by both "
@@ -165,8 +166,8 @@ def main() -> int:
         lines.append("")
     lines.append(f"{len(cells)} cells calibrated and captured, {len(ROWS) * len(args.seeds) * 2}"
                  f" reconstructions, {time.perf_counter() - t_start:.0f} s on a shared 2-core "
-                 "machine.")
-    Path(args.out).write_text("\n".join(lines) + "\n")
+                 "machine. " + machine_note())
+    write_report("\n".join(lines) + "\n", args.out, echo=False)
     print("\n".join(lines))
     return 0
 

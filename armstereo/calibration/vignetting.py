@@ -99,12 +99,18 @@ def sample_view(image: np.ndarray, board: Board, intrinsics: Intrinsics,
     T = np.asarray(T_camera_board, dtype=float)
     rvec = cv2.Rodrigues(np.ascontiguousarray(T[:3, :3]))[0]
     in_front = (P @ T[:3, :3].T + T[:3, 3])[:, 2] > 0
+    if not np.any(in_front):
+        empty = np.zeros(0)
+        return empty, empty, empty
     uv, _ = cv2.projectPoints(P[in_front], rvec, T[:3, 3], intrinsics.K, intrinsics.dist)
     uv = uv.reshape(-1, 2).astype(np.float32)
     h, w = image.shape[:2]
     inside = ((uv[:, 0] >= BORDER_PX) & (uv[:, 0] <= w - 1 - BORDER_PX)
               & (uv[:, 1] >= BORDER_PX) & (uv[:, 1] <= h - 1 - BORDER_PX))
     uv = uv[inside]
+    if len(uv) == 0:
+        empty = np.zeros(0)
+        return empty, empty, empty
     grey = image.astype(np.float32) if image.ndim == 2 else \
         image.astype(np.float32).mean(axis=2)
     values = cv2.remap(grey, uv[:, 0].reshape(1, -1), uv[:, 1].reshape(1, -1),
