@@ -12,7 +12,10 @@ A mount file is TOML::
     K = [[600.0, 0.0, 319.5], [0.0, 600.0, 239.5], [0.0, 0.0, 1.0]]
     dist = [0.0, 0.0, 0.0, 0.0, 0.0]
 
-``rotation_matrix = [[...], [...], [...]]`` may replace ``rotation_rpy``.
+``rotation_matrix = [[...], [...], [...]]`` may replace ``rotation_rpy``. An optional
+``[vignetting]`` section holds the lens's brightness fall-off (``center``, ``k``; see
+:mod:`armstereo.photometric.vignetting`), which ``armstereo calibrate`` estimates; files
+without it (all older ones) load with ``vignetting = None``.
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ import numpy as np
 
 from armstereo.camera_model import Intrinsics
 from armstereo.errors import ArmstereoError, ConfigError
+from armstereo.photometric.vignetting import Vignetting
 from armstereo.transforms import as_rigid, make_T, rot_x, rot_y, rot_z
 from robot_models import MOUNTS_DIR
 
@@ -40,6 +44,7 @@ class CameraMount:
     T_flange_camera: np.ndarray
     intrinsics: Intrinsics
     source: str = ""  # the file's text, stored in recordings
+    vignetting: Vignetting | None = None  # the lens's fall-off, if the file has the section
 
     @classmethod
     def load(cls, name_or_path: str | Path | None = None) -> CameraMount:
@@ -84,8 +89,14 @@ class CameraMount:
             K=_finite_array(cam["K"], "camera.K", (3, 3)),
             dist=_finite_array(cam.get("dist", [0.0] * 5), "camera.dist", None),
         )
+        vig = doc.get("vignetting")
+        if vig is not None:
+            try:
+                vig = Vignetting.from_dict(vig, intr.width, intr.height)
+            except ArmstereoError as err:
+                raise ConfigError(f"[vignetting]: {err}") from None
         return cls(name=str(doc.get("name", "mount")), T_flange_camera=T, intrinsics=intr,
-                   source=source)
+                   source=source, vignetting=vig)
 
     @property
     def sha256(self) -> str:

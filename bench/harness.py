@@ -333,17 +333,18 @@ def stereo_cases() -> list[Case]:
 
 
 # ---------------------------------------------------------------------------- mock experiments
-def capture_and_score(folder: Path, believed, truth_base, profile: str,
-                      seed: int) -> tuple[float, float]:
-    """Capture a pair of the profile's mock scene with the software believing the mount
-    ``believed`` while the mock camera is ``truth_base`` plus the profile's errors (as in a
-    calibration session), reconstruct it (StereoSGBM) and score it against the mock's truth:
-    (median |relative depth error|, median point distance to the true surfaces in mm)."""
+def capture_and_score(folder: Path, believed, profile: str, seed: int) -> tuple[float, float]:
+    """Capture a pair of the mock cell (``profile``, ``seed``) with the software believing the
+    mount ``believed`` (the cell's camera is its own, whatever the software believes),
+    reconstruct it (StereoSGBM, photometric correction from the recorded mount file) and score
+    it against the mock's truth: (median |relative depth error|, median point distance to the
+    true surfaces in mm)."""
     from armstereo import backends
     from armstereo.apps.demo import point_error_mm, score_reconstruction
     from armstereo.capture import CaptureSettings, plan_capture
     from armstereo.capture.run import model_metadata
     from armstereo.capture.session import capture_to_file
+    from armstereo.photometric.correct import for_recording
     from armstereo.reconstruct.pipeline import reconstruct_pair
     from armstereo.recording import Recording
     from armstereo.robot.arm_model import ArmModel
@@ -352,7 +353,7 @@ def capture_and_score(folder: Path, believed, truth_base, profile: str,
     path = folder / f"{believed.name}.mcap"
     given = ArmModel.load("ur5e", mount=believed)
     arm_cfg = backends.arm_config("mock", profile=profile, seed=seed)
-    cam_cfg = backends.camera_config("mock", profile=profile, seed=seed, truth_mount=truth_base)
+    cam_cfg = backends.camera_config("mock", profile=profile, seed=seed)
     with backends.build_arm("mock", arm_cfg, given) as arm:
         kinematics = choose_kinematics(given, arm, live=False)
         model = kinematics.model
@@ -362,7 +363,8 @@ def capture_and_score(folder: Path, believed, truth_base, profile: str,
             capture_to_file(arm, camera, model, plan, path,
                             {**model_metadata(model), **kinematics.metadata()}, progress=None)
     recording = Recording.open(path)
-    recon = reconstruct_pair(recording[0], method="sgbm")
+    recon = reconstruct_pair(recording[0], method="sgbm",
+                             photometric=for_recording(True, recording.metadata))
     depth = score_reconstruction(recon.depth_original, recording[0], swapped=recon.swapped)
     points = point_error_mm(recon.points_base, recording.metadata)
     return depth.median_abs_rel_depth_error, points["median"]

@@ -14,21 +14,25 @@ The steps the command runs, each usable alone:
    offline recomputation of its recording are the same computation on the same data, and
    write the mount file.
 
-On the mock, :func:`mock_camera_values` lays the board on the mock table and gives the mock
-camera a true mount that differs from the mount file (so the calibrator must find it). All
-poses are in the controller's ``base`` frame.
+On the mock, :func:`mock_camera_values` lays the board on the mock table; the camera is the
+mock cell's (the one ``capture`` meets on the same profile and seed). All poses are in the
+controller's ``base`` frame.
 """
 
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from armstereo.calibration.board import Board
 from armstereo.calibration.calibrate import Calibration, CalibrationOptions
+from armstereo.calibration.checks import MIN_VIEWS
+from armstereo.calibration.coverage import coverage_views
 from armstereo.calibration.session import calibrate_recording
 from armstereo.calibration.views import (
     CalibrationViewPlan,
@@ -44,8 +48,6 @@ from armstereo.errors import ArmstereoError
 from armstereo.io.files import write_text_atomic
 from armstereo.mount import CameraMount
 from armstereo.robot.arm_model import ArmModel
-
-MOCK_TRUTH_TAG = 31  # random stream of the mock camera's true mount (independent of the rest)
 
 
 @dataclass
@@ -70,7 +72,7 @@ class SessionPlan:
 
 def plan_session(model: ArmModel, camera: Camera, q_start: np.ndarray, board: Board, *,
                  views: ViewPlanSettings | None = None,
-                 tour: CaptureSettings | None = None) -> SessionPlan:
+                 tour: CaptureSettings | None = None, corner_views: int = 0) -> SessionPlan:
     """Grab the start image, find the board and plan and check the session (moves nothing).
 
     ``model`` carries the kinematics the session will use (calibrated where read) and the
@@ -78,17 +80,34 @@ def plan_session(model: ArmModel, camera: Camera, q_start: np.ndarray, board: Bo
     (:func:`armstereo.capture.view_tour.tour_settings`). Raises CalibrationInputError (exit 2)
     when the board is not (well) visible in the start image and PreflightError (exit 3) when
     too few views can be reached; a failed tour check is left in the plan
-    (``plan.tour.require_ok()``).
+    (``plan.tour.require_ok()``). ``corner_views`` of the views (at most as many as leave
+    MIN_VIEWS orbit views) put the board into the image corners instead of its middle
+    (:mod:`armstereo.calibration.coverage`: the lens's distortion and vignetting are largest
+    there); an orbit view stays where a corner view cannot be reached.
     """
     views = views or ViewPlanSettings()
     image = camera.grab().image
     T_cb = board_in_start_view(image, board, camera.intrinsics)
     plan = plan_calibration_views(model, q_start, board, T_camera_board_start=T_cb,
                                   settings=views)
+    plan = _with_corner_views(model, q_start, plan, board, views,
+                              min(corner_views, views.n_views - MIN_VIEWS))
     ordered = _tour_order(np.asarray(q_start, float), plan)
     q_views = [v.q for v in ordered.views]
     return SessionPlan(image, T_cb, ordered, plan_view_tour(model, q_start, q_views,
                                                                   tour or tour_settings()))
+
+
+def _with_corner_views(model: ArmModel, q_start: np.ndarray, plan: CalibrationViewPlan,
+                       board: Board, settings: ViewPlanSettings,
+                       n: int) -> CalibrationViewPlan:
+    """The plan with its last ``n`` orbit views replaced by corner views (those that pass)."""
+    if n <= 0:
+        return plan
+    corners, skipped = coverage_views(model, q_start, plan, board, n, settings)
+    kept = plan.views[:len(plan.views) - len(corners)]
+    return CalibrationViewPlan(kept + corners, plan.T_base_board, plan.diversity,
+                               plan.skipped + skipped)
 
 
 def _tour_order(q_start: np.ndarray, plan: CalibrationViewPlan) -> CalibrationViewPlan:
@@ -124,12 +143,59 @@ def calibration_options(out: Path) -> CalibrationOptions:
     return CalibrationOptions(mount_name=name)
 
 
-def mock_camera_values(board: Board, nominal: CameraMount, seed: int) -> dict:
-    """Mock camera config values for a calibration: the board on the table, and a true mount
-    (hand-eye about 5 mm / 2 deg, focal length 2 %, principal point 6 px away from
-    ``nominal``, plus radial distortion; seeded) that the calibration has to find."""
-    from armstereo.calibration.synthetic import perturbed_mount
+def mock_camera_values(board: Board, nominal: CameraMount | None = None,
+                       seed: int | None = None) -> dict:
+    """Mock camera config values for a calibration: the board on the table. The camera is the
+    mock cell's own (``drivers.mock.cell``: on the realistic profile the bundled mount moved
+    by a CAD guess's error, with lens distortion and vignetting), the same camera ``capture``
+    meets on that cell, so the mount file the calibration writes is right for it.
+    ``nominal`` and ``seed`` are accepted for older callers and not used."""
+    return {"board": board}
 
-    rng = np.random.default_rng([int(seed), MOCK_TRUTH_TAG])
-    truth = perturbed_mount(nominal, rng)
-    return {"board": board, "truth_mount": truth}
+
+@dataclass(frozen=True, kw_only=True)
+class MockCalibration:
+    """A calibration session on the mock cell, as ``armstereo calibrate --camera mock`` runs
+    it: the views planned from the ``table`` start pose, recorded and calibrated."""
+
+    board: str = "chessboard:17x12:0.016"
+    views: int = 10
+    corner_views: int = 4
+    robot: str = "ur5e"
+    profile: Any = "realistic"
+    seed: int = 0
+
+
+def calibrate_mock_cell(out: Path, recording: Path, settings: MockCalibration,
+                        progress: Callable[[str], None] | None = None) -> Calibration:
+    """Plan, record (``recording``) and calibrate a session on the mock cell named by
+    ``settings.profile`` and ``settings.seed``, starting from the bundled mount file, and
+    write the mount file ``out``. The same steps as the live command, without a prompt (the
+    mock moves nothing real)."""
+    from armstereo import backends
+    from armstereo.calibration.board import parse_board
+    from armstereo.calibration.session import calibration_metadata
+    from armstereo.capture.run import model_metadata
+    from armstereo.capture.session import capture_to_file
+    from armstereo.robot.model_file import load_arm_model
+    from armstereo.robot.source import choose_kinematics
+
+    board = parse_board(settings.board)
+    model = load_arm_model(settings.robot, mount=CameraMount.load(None))
+    arm_cfg = backends.arm_config("mock", seed=settings.seed, profile=settings.profile)
+    cam_cfg = backends.camera_config("mock", seed=settings.seed, profile=settings.profile,
+                                     **mock_camera_values(board))
+    with backends.build_arm("mock", arm_cfg, model) as arm:
+        kinematics = choose_kinematics(model, arm, live=False)
+        model = kinematics.model
+        with backends.build_camera("mock", cam_cfg, model, arm) as camera:
+            plan = plan_session(model, camera, arm.joint_positions(), board,
+                                views=ViewPlanSettings(n_views=settings.views),
+                                corner_views=settings.corner_views)
+            plan.tour.require_ok()
+            metadata = {**model_metadata(model), **kinematics.metadata(), "arm": "mock",
+                        "camera": "mock", "mock_profile": arm_cfg.profile.name,
+                        **calibration_metadata(board, settings.views)}
+            capture_to_file(arm, camera, model, plan.tour, recording, metadata,
+                            progress=progress)
+    return finish(recording, out, board)

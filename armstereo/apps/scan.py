@@ -148,7 +148,8 @@ def record_scan(out: str | Path, request: ScanRequest, model: ArmModel, *, arm: 
         with backends.build_camera(camera, camera_config, model, device) as cam:
             meta = {**model_metadata(model), **(metadata or {}), **scan_metadata(tour, request),
                     **kinematics.metadata()}
-            observer = tour.observer(cam.intrinsics) if hasattr(tour, "observer") else None
+            observer = (tour.observer(cam.intrinsics, model.mount.vignetting)
+                        if hasattr(tour, "observer") else None)
             result = capture_to_file(device, cam, model, tour, out, meta,
                                      image_format=request.image_format, progress=progress,
                                      on_view=observer)

@@ -35,7 +35,7 @@ from armstereo.calibration.intrinsics import (
     check_distortion_model,
 )
 from armstereo.calibration.mount_file import mount_toml
-from armstereo.calibration.poses import as_rigid, mean_pose, pose_difference
+from armstereo.calibration.poses import as_rigid, exp6, mean_pose, pose_difference
 from armstereo.calibration.refine import PoseErrorPrior, RefineResult, refine_hand_eye
 from armstereo.calibration.report import (
     LeaveOneOut,
@@ -51,6 +51,7 @@ from armstereo.calibration.report import (
 )
 from armstereo.calibration.screening import add_screening, check_fit, screen_session
 from armstereo.calibration.selection import REFINED, choose_hand_eye
+from armstereo.calibration.vignetting import estimate_vignetting
 from armstereo.camera_model import Intrinsics
 from armstereo.errors import ConfigError
 from armstereo.mount import CameraMount
@@ -79,11 +80,19 @@ class CalibrationOptions:
     their pose or whose corners are misread (screening.py); False keeps every usable view.
     ``select_hand_eye``: with ``leave_one_out``, take the hand-eye (refinement or a closed
     form) that predicts left-out views from their arm poses best (selection.py).
+    ``vignetting``: estimate the lens's fall-off from the board's white paper
+    (:mod:`armstereo.calibration.vignetting`; needs the images, so only
+    :func:`calibrate_from_poses` and :func:`calibrate_from_views` do it) and write it into the
+    mount file. ``board_shape``: estimate the print's scale error and bow with the rest
+    (:mod:`armstereo.calibration.refine`; a real print is neither exactly its spec's size nor
+    flat, and either biases the hand-eye and focal length while every residual looks fine).
     """
 
     distortion_model: str = "k1k2"
     refine_intrinsics: bool = True
     pose_error: PoseErrorPrior | None = field(default_factory=PoseErrorPrior)
+    board_shape: bool = True
+    vignetting: bool = True
     leave_one_out: bool = True
     working_distance_m: float | None = None
     screen_views: bool = True
@@ -139,8 +148,39 @@ def calibrate_from_poses(images: Sequence[np.ndarray], T_base_flange: Sequence[n
     if len(sizes) != 1:
         raise ConfigError(f"all views must have one image size, got {sorted(sizes)}")
     detections = [detect_board(img, board) for img in images]
-    return calibrate_from_detections(detections, T_base_flange, board, sizes.pop(),
-                                     intrinsics=intrinsics, options=options)
+    cal = calibrate_from_detections(detections, T_base_flange, board, sizes.pop(),
+                                    intrinsics=intrinsics, options=options)
+    if options.vignetting:
+        cal = _with_vignetting(cal, images, T_base_flange, board)
+    return cal
+
+
+def _with_vignetting(cal: Calibration, images: Sequence[np.ndarray],
+                     flanges: Sequence[np.ndarray], board: Board) -> Calibration:
+    """``cal`` with the fall-off fitted to its views (report ``vignetting``, the mount file's
+    ``[vignetting]`` section); unchanged, with a warning, when too little paper was seen. The
+    board poses are the joint refinement's (with its intrinsics and per-view pose errors)."""
+    r = cal.refined
+    views = cal.views_used
+    T_cb = [invert(r.T_flange_camera) @ invert(np.asarray(flanges[i], float) @ exp6(r.delta[k]))
+            @ r.T_base_board for k, i in enumerate(views)]
+    fit = estimate_vignetting([images[i] for i in views], board, r.intrinsics, T_cb)
+    if fit is None:
+        cal.report["warnings"].append("too little of the board's white paper was seen to "
+                                      "estimate the vignetting; none is written")
+        cal.report["vignetting"] = None
+        return cal
+    cal.report["vignetting"] = fit.as_dict()
+    if not fit.reaches_corners:
+        cal.report["warnings"].append(
+            f"the board never came near the image corners (largest radius "
+            f"{fit.max_radius:.2f} of the half-diagonal): the vignetting there is extrapolated; "
+            "record views with the board in the corners (--corner-views)")
+    m = cal.mount
+    text = m.source.rstrip("\n") + "\n\n" + "\n".join(fit.model.toml_lines())
+    cal.mount = CameraMount(m.name, m.T_flange_camera, m.intrinsics, text,
+                            vignetting=fit.model)
+    return cal
 
 
 def calibrate_from_detections(detections: Sequence[Detection | None],
@@ -183,7 +223,8 @@ def calibrate_from_detections(detections: Sequence[Detection | None],
     refine_k = options.refine_intrinsics and intrinsics is None
     refined = refine_hand_eye(dets, flanges, X0, B0, intr0, pose_error=options.pose_error,
                               refine_intrinsics=refine_k,
-                              distortion_model=options.distortion_model)
+                              distortion_model=options.distortion_model,
+                              board_shape=options.board_shape, board_center=board.center[:2])
     modelled = options.pose_error is not None
     check_fit(refined.intrinsics, intr0, refined.rms_px, intrinsics_given=intrinsics is not None,
               arm_error_m=refined.pose_sigma_t if modelled else 0.0,
@@ -268,6 +309,7 @@ def _report(board: Board, n_recorded: int, views: list[int],
             "T_flange_camera": refined.T_flange_camera.tolist(),
             "T_camera_flange": invert(refined.T_flange_camera).tolist(),
             "T_base_board": refined.T_base_board.tolist(),
+            "board_shape": _shape_entry(refined, board),
             "rms_px": refined.rms_px,
             "per_view_rms_px": refined.per_view_rms_px.tolist(),
             "pixel_sigma_px": refined.pixel_sigma,
@@ -306,6 +348,18 @@ def _report(board: Board, n_recorded: int, views: list[int],
         report["quality"]["effect"] = error_effects(loo.translation_m, loo.rotation_deg,
                                                     work_d, intr)
     return report
+
+
+def _shape_entry(refined: RefineResult, board: Board) -> dict | None:
+    """The board as the fit found it: scale error, curvatures, and ``bow_m``: how far its
+    outermost corner lies behind its centre (board z; positive: the centre stands out)."""
+    if refined.board_shape is None:
+        return None
+    s, kx, ky = (float(v) for v in refined.board_shape)
+    P = np.asarray(board.object_points, dtype=float)
+    dx, dy = P[:, 0] - refined.board_center[0], P[:, 1] - refined.board_center[1]
+    return {"scale_error_rel": s, "curvature_per_m": [kx, ky],
+            "bow_m": float(np.max(kx * dx * dx + ky * dy * dy))}
 
 
 def _closed_entry(est: HandEyeEstimate, X_refined: np.ndarray) -> dict:

@@ -14,6 +14,14 @@ are more precise. The sigmas themselves are estimated from the data (variance co
 estimation over a few rounds), so an ideal arm ends up trusted and a sloppy one is not. With
 ``pose_error=None`` the deltas are held at zero (the trusting model, kept for comparison).
 
+With ``board_shape`` the board's own shape is estimated too, because a real print is neither
+exactly the size its spec says nor flat: each corner ``P = (x, y, 0)`` of the spec becomes
+``(x + s (x - cx), y + s (y - cy), kx (x - cx)^2 + ky (y - cy)^2)`` about the board's centre
+``(cx, cy)``, with unknown relative scale error ``s`` and bow curvatures ``kx``, ``ky`` (1/m,
+board z). The arm's metric motion makes the scale observable: a board 0.2 % larger than its
+spec, taken as the spec, moves the hand-eye by about a millimetre; a bow of half a millimetre
+biases the focal length by a tenth of a percent.
+
 The Jacobian is analytic: OpenCV's ``projectPoints`` gives d(uv)/d(camera point) and the
 intrinsics' columns; poses are perturbed on the right through :mod:`poses`' chart. Each view's
 rows touch only X, the board, the intrinsics and its own delta, so the normal equations are
@@ -77,6 +85,36 @@ class RefineResult:
     per_view_rms_px: np.ndarray
     covariance_X: np.ndarray
     iterations: int
+    # (s, kx, ky) of the board's shape (module doc) and the centre it is taken about (board
+    # frame, m); None when the board was taken as its spec says.
+    board_shape: np.ndarray | None = None
+    board_center: np.ndarray | None = None
+
+    def object_points(self, det: Detection) -> np.ndarray:
+        """``det``'s corners on the board as this fit found it (board frame, m)."""
+        if self.board_shape is None:
+            return det.object_points
+        return shaped_points(det.object_points, self.board_shape, self.board_center)
+
+
+def shaped_points(P: np.ndarray, shape: np.ndarray, center: np.ndarray) -> np.ndarray:
+    """Board-frame corners (N, 3) of the spec moved by ``shape`` = (s, kx, ky) about
+    ``center`` (cx, cy) (module doc)."""
+    dx, dy = P[:, 0] - center[0], P[:, 1] - center[1]
+    out = np.array(P, dtype=float, copy=True)
+    out[:, 0] += shape[0] * dx
+    out[:, 1] += shape[0] * dy
+    out[:, 2] += shape[1] * dx * dx + shape[2] * dy * dy
+    return out
+
+
+def _shape_columns(P: np.ndarray, center: np.ndarray) -> np.ndarray:
+    """(N, 3, 3): d(shaped point)/d(s, kx, ky) (the model is linear in them)."""
+    dx, dy = P[:, 0] - center[0], P[:, 1] - center[1]
+    J = np.zeros((len(P), 3, 3))
+    J[:, 0, 0], J[:, 1, 0] = dx, dy
+    J[:, 2, 1], J[:, 2, 2] = dx * dx, dy * dy
+    return J
 
 
 @dataclass
@@ -92,6 +130,8 @@ class _Problem:
     sigma_px: float
     sigma_t: float
     sigma_r: float
+    shape0: np.ndarray | None = None  # (s, kx, ky) start; None: the board as its spec says
+    center: np.ndarray | None = None  # board-frame centre the shape is taken about
 
     @property
     def n_views(self) -> int:
@@ -102,15 +142,29 @@ class _Problem:
         return 4 + self.n_dist if self.refine_intrinsics else 0
 
     @property
+    def n_shape(self) -> int:
+        return 0 if self.shape0 is None else 3
+
+    @property
+    def n_shared(self) -> int:
+        return 12 + self.n_intr + self.n_shape
+
+    @property
     def n_params(self) -> int:
-        return 12 + self.n_intr + (6 * self.n_views if self.with_delta else 0)
+        return self.n_shared + (6 * self.n_views if self.with_delta else 0)
 
     def split(self, x: np.ndarray):
+        """(xi_X, xi_B, intrinsics, delta (V, 6), board shape (3,) or None) of x."""
         xi_X, xi_B = x[:6], x[6:12]
         intr = x[12:12 + self.n_intr]
-        delta = x[12 + self.n_intr:].reshape(-1, 6) if self.with_delta else \
+        shape = x[12 + self.n_intr:self.n_shared] if self.n_shape else None
+        delta = x[self.n_shared:].reshape(-1, 6) if self.with_delta else \
             np.zeros((self.n_views, 6))
-        return xi_X, xi_B, intr, delta
+        return xi_X, xi_B, intr, delta, shape
+
+    def points(self, det: Detection, shape: np.ndarray | None) -> np.ndarray:
+        return det.object_points if shape is None else shaped_points(det.object_points,
+                                                                     shape, self.center)
 
     def intrinsics(self, p: np.ndarray) -> Intrinsics:
         if not self.refine_intrinsics:
@@ -126,6 +180,8 @@ class _Problem:
             K = self.intr0.K
             x[12:16] = [K[0, 0], K[1, 1], K[0, 2], K[1, 2]]
             x[16:16 + self.n_dist] = self.intr0.dist[:self.n_dist]
+        if self.n_shape:
+            x[12 + self.n_intr:self.n_shared] = self.shape0
         return x
 
 
@@ -134,19 +190,32 @@ def refine_hand_eye(detections: Sequence[Detection], T_base_flange: Sequence[np.
                     intrinsics: Intrinsics, *, pose_error: PoseErrorPrior | None = None,
                     refine_intrinsics: bool = False, distortion_model: str = "k1k2",
                     pixel_sigma: float = DEFAULT_PIXEL_SIGMA,
-                    estimate_sigmas: bool = True, cost_tol: float = COST_TOL) -> RefineResult:
+                    estimate_sigmas: bool = True, cost_tol: float = COST_TOL,
+                    board_shape: bool = False, shape0: Sequence[float] | None = None,
+                    board_center: Sequence[float] | None = None) -> RefineResult:
     """Refine X = T_flange_camera and T_base_board from initial values (module docstring).
 
     ``pose_error`` None trusts the arm's poses exactly (deltas fixed at 0). With
     ``estimate_sigmas`` False the given sigmas are used as they are (one fit).
+    ``board_shape`` also estimates the board's scale error and bow (module docstring),
+    starting from ``shape0`` (default none) about ``board_center`` (board frame; default the
+    middle of the detected corners).
     """
     with_delta = pose_error is not None
     prior = pose_error or PoseErrorPrior(estimate=False)
-    prob = _Problem(list(detections), [np.asarray(F, float) for F in T_base_flange],
+    dets = list(detections)
+    center = None
+    if board_shape:
+        center = (np.asarray(board_center, float) if board_center is not None else
+                  np.mean(np.concatenate([d.object_points for d in dets])[:, :2], axis=0))
+    prob = _Problem(dets, [np.asarray(F, float) for F in T_base_flange],
                     np.asarray(T_flange_camera, float), np.asarray(T_base_board, float),
                     intrinsics, DISTORTION_MODELS[distortion_model] if refine_intrinsics else 0,
                     refine_intrinsics, with_delta, float(pixel_sigma),
-                    float(prior.translation_m), float(prior.rotation_rad))
+                    float(prior.translation_m), float(prior.rotation_rad),
+                    None if not board_shape else np.asarray(shape0 if shape0 is not None
+                                                            else np.zeros(3), float),
+                    center)
     x = prob.x0()
     rounds = VARIANCE_ROUNDS if estimate_sigmas else 1
     iterations = 0
@@ -230,23 +299,25 @@ class _Normal:
 
 
 def _transforms(prob: _Problem, x: np.ndarray):
-    xi_X, xi_B, intr, delta = prob.split(x)
+    xi_X, xi_B, intr, delta, shape = prob.split(x)
     X = prob.X0 @ exp6(xi_X)
     B = prob.B0 @ exp6(xi_B)
-    return X, B, prob.intrinsics(intr), delta
+    return X, B, prob.intrinsics(intr), delta, shape
 
 
-def _project(det: Detection, X, B, F_true, intr: Intrinsics, jac: bool):
+def _project(P: np.ndarray, X, B, F_true, intr: Intrinsics, jac: bool):
+    """Corners ``P`` (board frame) projected from the true flange pose ``F_true``."""
     T_cb = invert(X) @ invert(F_true) @ B
     rvec = cv2.Rodrigues(np.ascontiguousarray(T_cb[:3, :3]))[0]
-    uv, J = cv2.projectPoints(det.object_points, rvec, T_cb[:3, 3], intr.K, intr.dist)
+    uv, J = cv2.projectPoints(P, rvec, T_cb[:3, 3], intr.K, intr.dist)
     return uv.reshape(-1, 2), (J if jac else None), T_cb
 
 
 def _pixel_residuals(prob: _Problem, x: np.ndarray) -> list[np.ndarray]:
     """Per view, (N, 2) pixel errors (projected minus detected), not divided by sigma."""
-    X, B, intr, delta = _transforms(prob, x)
-    return [_project(det, X, B, prob.F[i] @ exp6(delta[i]), intr, False)[0] - det.image_points
+    X, B, intr, delta, shape = _transforms(prob, x)
+    return [_project(prob.points(det, shape), X, B, prob.F[i] @ exp6(delta[i]), intr,
+                     False)[0] - det.image_points
             for i, det in enumerate(prob.detections)]
 
 
@@ -282,36 +353,42 @@ def _cost(prob: _Problem, x: np.ndarray) -> float:
 
 def _view_blocks(prob: _Problem, x: np.ndarray):
     """Per view: (column indices, whitened Jacobian rows (2N, k), whitened residuals (2N,))."""
-    xi_X, xi_B, _, delta = prob.split(x)
-    X, B, intr, _ = _transforms(prob, x)
+    xi_X, xi_B, _, delta, _ = prob.split(x)
+    X, B, intr, _, shape = _transforms(prob, x)
     M_X, M_B = chart_jacobian(xi_X), chart_jacobian(xi_B)
     R_X = X[:3, :3]
-    shared = list(range(12 + prob.n_intr))
+    shared = list(range(prob.n_shared))
     for i, det in enumerate(prob.detections):
-        uv, Jcv, T_cb = _project(det, X, B, prob.F[i] @ exp6(delta[i]), intr, True)
+        P_b = prob.points(det, shape)
+        uv, Jcv, T_cb = _project(P_b, X, B, prob.F[i] @ exp6(delta[i]), intr, True)
         n = len(det)
         d_uv_dP = Jcv[:, 3:6].reshape(n, 2, 3)  # d(uv)/d(camera point) = d/d(tvec)
-        P_c = det.object_points @ T_cb[:3, :3].T + T_cb[:3, 3]
+        P_c = P_b @ T_cb[:3, :3].T + T_cb[:3, 3]
         P_f = P_c @ R_X.T + X[:3, 3]  # the corner in the (true) flange frame
         minus_I = np.broadcast_to(-np.eye(3), (n, 3, 3))
         blocks = [
             # X -> X exp(e): P_c -> P_c - w x P_c - v
             (d_uv_dP @ np.concatenate([_skew_rows(P_c), minus_I], 2)).reshape(2 * n, 6) @ M_X,
             # B -> B exp(e): P_c -> P_c + R_cb (w x P_b + v)
-            (d_uv_dP @ np.concatenate([-T_cb[:3, :3] @ _skew_rows(det.object_points),
+            (d_uv_dP @ np.concatenate([-T_cb[:3, :3] @ _skew_rows(P_b),
                                        np.broadcast_to(T_cb[:3, :3], (n, 3, 3))], 2)
              ).reshape(2 * n, 6) @ M_B,
         ]
         if prob.refine_intrinsics:
             blocks.append(Jcv[:, 6:10])
             blocks.append(Jcv[:, 10:10 + prob.n_dist])
+        if prob.n_shape:
+            # the shape moves the corner on the board: P_c -> P_c + R_cb dP
+            blocks.append((d_uv_dP @ (T_cb[:3, :3] @ _shape_columns(det.object_points,
+                                                                   prob.center))
+                           ).reshape(2 * n, 3))
         cols = shared
         if prob.with_delta:
             # F -> F exp(d) exp(e): P_f -> P_f - w x P_f - v, then P_c = R_X^T (P_f - t_X)
             dPf = np.concatenate([_skew_rows(P_f), minus_I], 2)
             blocks.append((d_uv_dP @ (R_X.T @ dPf)).reshape(2 * n, 6)
                           @ chart_jacobian(delta[i]))
-            c = 12 + prob.n_intr + 6 * i
+            c = prob.n_shared + 6 * i
             cols = shared + list(range(c, c + 6))
         J = np.concatenate(blocks, axis=1) / prob.sigma_px
         r = ((uv - det.image_points) / prob.sigma_px).ravel()
@@ -320,7 +397,7 @@ def _view_blocks(prob: _Problem, x: np.ndarray):
 
 def _normal_equations(prob: _Problem, x: np.ndarray) -> _Normal:
     """J^T J and J^T r of the whitened problem, accumulated view by view."""
-    p = 12 + prob.n_intr
+    p = prob.n_shared
     V = prob.n_views if prob.with_delta else 0
     A, ga = np.zeros((p, p)), np.zeros(p)
     C, D, gd = np.zeros((V, p, 6)), np.zeros((V, 6, 6)), np.zeros((V, 6))
@@ -348,7 +425,7 @@ def _jacobian(prob: _Problem, x: np.ndarray) -> np.ndarray:
         full[:, cols] = J
         rows.append(full)
     if prob.with_delta:
-        c0 = 12 + prob.n_intr
+        c0 = prob.n_shared
         prior = np.zeros((6 * prob.n_views, prob.n_params))
         idx = np.arange(6 * prob.n_views)
         prior[idx, c0 + idx] = 1.0 / np.tile(_prior_scale(prob), prob.n_views)
@@ -369,7 +446,7 @@ def _update_sigmas(prob: _Problem, x: np.ndarray, estimate_pose: bool) -> _Probl
     """Variance component estimation: pixel sigma from the residuals, pose sigmas from the
     deltas and how much of each delta the images (not the prior) determine."""
     pix = np.concatenate([r.ravel() for r in _pixel_residuals(prob, x)])
-    dof = max(len(pix) - 6 * prob.n_views - 12 - prob.n_intr, 1)
+    dof = max(len(pix) - 6 * prob.n_views - prob.n_shared, 1)
     new = replace(prob, sigma_px=float(np.sqrt(np.sum(pix**2) / dof)))
     if not estimate_pose:
         return new
@@ -390,7 +467,7 @@ def _variance_component(d: np.ndarray, var: np.ndarray, sigma: float) -> float:
 
 
 def _result(prob: _Problem, x: np.ndarray, iterations: int) -> RefineResult:
-    X, B, intr, delta = _transforms(prob, x)
+    X, B, intr, delta, shape = _transforms(prob, x)
     errs = [np.sum(r**2, axis=1) for r in _pixel_residuals(prob, x)]
     per_view = np.array([math.sqrt(float(np.mean(e))) for e in errs])
     M = chart_jacobian(prob.split(x)[0])
@@ -398,4 +475,5 @@ def _result(prob: _Problem, x: np.ndarray, iterations: int) -> RefineResult:
     cov_X = M @ cov_a[:6, :6] @ M.T  # in X's own (right-perturbation) frame
     return RefineResult(X, B, intr, delta.copy(), prob.sigma_px, prob.sigma_t, prob.sigma_r,
                         math.sqrt(float(np.mean(np.concatenate(errs)))), per_view, cov_X,
-                        iterations)
+                        iterations, None if shape is None else shape.copy(),
+                        None if prob.center is None else prob.center.copy())

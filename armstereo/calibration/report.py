@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -78,15 +78,17 @@ def leave_one_out(detections: Sequence[Detection], T_base_flange: Sequence[np.nd
                               full.T_flange_camera, full.T_base_board, full.intrinsics,
                               pose_error=prior, refine_intrinsics=refine_intrinsics,
                               distortion_model=distortion_model, pixel_sigma=full.pixel_sigma,
-                              estimate_sigmas=False)
+                              estimate_sigmas=False, board_shape=full.board_shape is not None,
+                              shape0=full.board_shape, board_center=full.board_center)
         X = fit.T_flange_camera
         t_dev.append(full.T_flange_camera[:3, :3].T @ (X[:3, 3] - full.T_flange_camera[:3, 3]))
         r_dev.append(rotvec(full.T_flange_camera[:3, :3].T @ X[:3, :3]))
         T_cb = invert(X) @ invert(T_base_flange[i]) @ fit.T_base_board
-        e = reprojection_errors(detections[i], fit.intrinsics, T_cb)
+        held_out = replace(detections[i], object_points=fit.object_points(detections[i]))
+        e = reprojection_errors(held_out, fit.intrinsics, T_cb)
         held.append(math.sqrt(float(np.mean(e**2))))
         held_sq.append(e**2)
-        held_mm.append(prediction_mm(detections[i], T_base_flange[i], X, fit.T_base_board,
+        held_mm.append(prediction_mm(held_out, T_base_flange[i], X, fit.T_base_board,
                                      fit.intrinsics))
     t_se = _jackknife_se(np.array(t_dev))
     r_se = np.degrees(_jackknife_se(np.array(r_dev)))

@@ -29,6 +29,7 @@ from armstereo.calibration.mount_file import truth_error
 from armstereo.camera_model import Intrinsics
 from armstereo.errors import ArmstereoError, ConfigError, RecordingError
 from armstereo.mount import CameraMount
+from armstereo.photometric.vignetting import Vignetting
 from armstereo.recording import Recording
 from armstereo.robot.arm_model import ArmModel
 
@@ -152,8 +153,10 @@ def mock_true_mount(session: CalibrationSession) -> CameraMount | None:
         h, w = session.images[0].shape[:2]
         intr = Intrinsics(w, h, np.asarray(truth["K"], dtype=float),
                           np.asarray(truth["dist"], dtype=float))
+        vig = truth.get("vignetting")
+        vig = None if vig is None else Vignetting.from_dict(vig, w, h)
         return CameraMount("mock_truth", np.asarray(truth["T_flange_camera"], dtype=float),
-                           intr)
+                           intr, vignetting=vig)
     except (ValueError, TypeError, KeyError, ArmstereoError) as err:
         raise RecordingError(f"{session.path}: the recorded mock camera truth is unusable "
                              f"({err})") from None

@@ -208,6 +208,13 @@ def _orbit_pose(T0_cam: np.ndarray, target: np.ndarray, dist: float, tilt_deg: f
     return make_T(R, target - dist * R[:, 2])
 
 
+def check_view(model: ArmModel, q: np.ndarray, T_cam: np.ndarray, T_base_board: np.ndarray,
+               board: Board, settings: ViewPlanSettings) -> str:
+    """Empty string if a view at joints ``q`` (camera ``T_cam``, base frame) passes the
+    planner's checks; otherwise the first failed check, with its numbers."""
+    return _check_view(model, q, T_cam, T_base_board, board, settings)
+
+
 def _check_view(model: ArmModel, q: np.ndarray, T_cam: np.ndarray, T_base_board: np.ndarray,
                 board: Board, s: ViewPlanSettings) -> str:
     """Empty string if the view passes; otherwise the first failed check, with its numbers."""

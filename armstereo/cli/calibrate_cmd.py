@@ -46,6 +46,7 @@ from armstereo.robot.source import choose_kinematics
 log = logging.getLogger("armstereo.calibrate")
 
 DEFAULT_VIEWS = 15
+DEFAULT_CORNERS = 4
 DEFAULT_ROBOT = "ur5e"
 # Flags that only a live session takes (refused with --from, which moves nothing).
 LIVE_ONLY = ("arm", "camera", "mount", "dry_run", "yes", "recording", "workspace")
@@ -61,6 +62,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "[:DICT] (squares, metres); required unless --from")
     p.add_argument("--views", type=args_.whole(MIN_VIEWS, MAX_VIEWS), default=DEFAULT_VIEWS,
                    help=f"views to record, the start view included (default {DEFAULT_VIEWS})")
+    p.add_argument("--corner-views", type=args_.whole(0, MAX_VIEWS), default=DEFAULT_CORNERS,
+                   help=f"of the --views, how many put the board into an image corner (for "
+                   f"the lens's distortion and vignetting there; default {DEFAULT_CORNERS})")
     p.add_argument("--out", required=True, help="mount file to write (.toml)")
     p.add_argument("--recording", default=None,
                    help="calibration recording to write (default: --out with .mcap)")
@@ -134,7 +138,8 @@ def _run_live(args: argparse.Namespace) -> int:
         camera = backends.build_camera(choice.camera, choice.camera_config, model, arm)
         with camera:
             plan = plan_session(model, camera, arm.joint_positions(), args.board,
-                                views=_view_settings(args), tour=_tour_settings(args))
+                                views=_view_settings(args), tour=_tour_settings(args),
+                                corner_views=args.corner_views)
             if args.dry_run or not plan.ok:
                 print("\n".join(plan.describe()))
             plan.tour.require_ok()
@@ -208,6 +213,8 @@ def _print_result(args: argparse.Namespace, cal: Calibration, out: Path,
     print("\n".join(report_lines(report)))
     if "truth_error" in report:
         e = report["truth_error"]
+        vig = e.get("vignetting_corner_rel")
         print(f"against the mock's truth: {e['translation_m'] * 1000:.3f} mm, "
-              f"{e['rotation_deg']:.4f} deg, focal {e['focal_rel'] * 100:+.3f} %")
+              f"{e['rotation_deg']:.4f} deg, focal {e['focal_rel'] * 100:+.3f} %"
+              + ("" if vig is None else f", vignetting at the corners {vig * 100:+.2f} %"))
     print(f"mount -> {out} (recording {recording})")

@@ -16,6 +16,7 @@ from armstereo.fusion.run import (
 )
 from armstereo.fusion.tsdf import Roi
 from armstereo.io.files import output_folder
+from armstereo.photometric.correct import CHOICES, PhotometricOptions
 from armstereo.reconstruct.stereo import METHODS
 
 log = logging.getLogger("armstereo.fuse")
@@ -43,6 +44,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "the fusion itself)")
     p.add_argument("--workers", type=args_.whole(1, 64), default=None,
                    help="reconstruction processes (default: one per two cores)")
+    p.add_argument("--photometric", choices=CHOICES, default="all",
+                   help="what is corrected before matching: the camera's vignetting (from the "
+                   "recording's mount file) and each pair's exposure and white balance "
+                   "(default all)")
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     p.set_defaults(func=run)
 
@@ -50,7 +55,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     roi = Roi.parse(args.roi) if args.roi else None
     options = FusionOptions(voxel=args.voxel, trunc=args.trunc, roi=roi, method=args.method,
-                            depth_source=args.depth_source, workers=args.workers)
+                            depth_source=args.depth_source, workers=args.workers,
+                            photometric=PhotometricOptions.from_choice(args.photometric))
     with output_folder(args.out):  # a fusion that fails early leaves no empty folder
         report = fuse_recording(args.recording, args.out, options,
                                 progress=None if args.json else _progress)

@@ -108,20 +108,21 @@ def run(args: argparse.Namespace) -> int:
 def _desk_sweep(args, choice: BackendChoice, baselines: list[float], out: Path) -> int:
     """The realistic profile's sweep: the demo's desk capture once per baseline, scored over
     every pixel both views see (see armstereo.apps.sweep)."""
-    from armstereo.apps.demo import DemoOptions, run_demo
+    from armstereo.apps.demo import DemoOptions, demo_settings, run_demo
 
     if args.distances is not None:
         raise ConfigError("--distances places planar targets (ideal profile); the realistic "
                           "profile sweeps the desk scene at the demo's height")
-    if args.mount is not None:
-        raise ConfigError("--mount is not used by the desk sweep (it uses the bundled mount, "
-                          "which the realistic camera differs from)")
+    for b in baselines:  # every baseline's pre-flight check before anything is calibrated
+        demo_settings(DemoOptions(robot=args.robot, baseline=b))
     results = []
     with output_folder(out):  # a sweep that fails before its first capture leaves nothing
+        mount = _sweep_mount(args, choice, out)
         for i, b in enumerate(baselines, 1):
             log.info("[%d/%d] baseline %g cm", i, len(baselines), b * 100)
             options = DemoOptions(robot=args.robot, baseline=b, method=args.method,
-                                  seed=choice.arm_config.seed, profile=choice.arm_config.profile)
+                                  seed=choice.arm_config.seed, profile=choice.arm_config.profile,
+                                  mount=mount, calibrate=False, compare=False)
             folder = out / f"baseline_{b * 1000:.0f}mm"
             folder.mkdir(exist_ok=True)
             report = run_demo(folder, options)
@@ -139,6 +140,19 @@ def _desk_sweep(args, choice: BackendChoice, baselines: list[float], out: Path) 
         else f"none kept {SCENE_MIN_DENSITY:.0%} density"))
     print(f"files: {out}/sweep.csv {out}/sweep.png and one demo folder per baseline")
     return 0
+
+
+def _sweep_mount(args, choice: BackendChoice, out: Path) -> CameraMount:
+    """The desk sweep's camera: ``--mount``, or the cell's camera calibrated once (the mount
+    file ``camera.toml`` in the sweep folder, as ``armstereo calibrate`` writes it)."""
+    if args.mount is not None:
+        return CameraMount.load(args.mount)
+    from armstereo.apps.calibrate import MockCalibration, calibrate_mock_cell
+
+    log.info("calibrating the camera on the cell (%s profile, seed %d) -> camera.toml",
+             choice.arm_config.profile.name, choice.arm_config.seed)
+    return calibrate_mock_cell(out / "camera.toml", out / "calibration.mcap", MockCalibration(
+        robot=args.robot, profile=choice.arm_config.profile, seed=choice.arm_config.seed)).mount
 
 
 def _floats(text: str) -> list[float]:

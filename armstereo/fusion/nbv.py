@@ -214,9 +214,11 @@ class AutoTour(Checked):
         return lines
 
     # ------------------------------------------------------------------------- while scanning
-    def observer(self, intrinsics: Intrinsics):
-        """The ``on_view`` hook for run_capture: fuses each pair once its right view is in."""
+    def observer(self, intrinsics: Intrinsics, vignetting=None):
+        """The ``on_view`` hook for run_capture: fuses each pair once its right view is in
+        (``vignetting``: the camera's fall-off, removed before matching, if known)."""
         self._intrinsics = intrinsics
+        self._vignetting = vignetting
         return self._observe
 
     def _observe(self, view: int, frame: Frame, T_base_camera: np.ndarray) -> None:
@@ -226,13 +228,16 @@ class AutoTour(Checked):
         if self._left is None:
             return
         left, self._left = self._left, None
+        from armstereo.photometric.correct import PhotometricOptions
         from armstereo.reconstruct.views import reconstruct_views
 
         intr = self._intrinsics
         try:
             recon = reconstruct_views(left[0].image, frame.image, intr.K, intr.K, left[1],
                                       T_base_camera, dist1=intr.dist, dist2=intr.dist,
-                                      method=self.method)
+                                      method=self.method,
+                                      photometric=PhotometricOptions(
+                                          model=getattr(self, "_vignetting", None)))
         except ArmstereoError as err:  # the scan goes on; this pair just adds no knowledge
             log.warning("next-best view: pair of views %d, %d not fused: %s", view - 1, view,
                         err)

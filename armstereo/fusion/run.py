@@ -27,6 +27,7 @@ from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -41,6 +42,7 @@ from armstereo.fusion.metrics import point_accuracy, reference_surface, score_me
 from armstereo.fusion.roi import auto_roi, check_roi_seen, frame_points
 from armstereo.fusion.tsdf import DepthFrame, Roi, TsdfVolume
 from armstereo.io.ply import write_ply
+from armstereo.photometric.correct import as_options, for_recording
 from armstereo.reconstruct.stereo_options import (
     BirchfieldOptions,
     StereoOptions,
@@ -48,6 +50,7 @@ from armstereo.reconstruct.stereo_options import (
     resolve_matcher,
 )
 from armstereo.recording import Recording
+from armstereo.recording.remount import remounted
 
 log = logging.getLogger(__name__)
 
@@ -80,7 +83,12 @@ class FusionOptions:
     matched (:class:`~armstereo.reconstruct.stereo_options.BirchfieldOptions`, e.g.
     ``BirchfieldOptions(photo_check=CLEAN_PHOTO_CHECK)`` for clean mock views, or
     ``SgbmOptions``), or ``method`` (None: ``stereo``'s, else "birchfield") with the older
-    ``stereo_options`` dict of the matcher's keywords (:attr:`matcher` resolves them)."""
+    ``stereo_options`` dict of the matcher's keywords (:attr:`matcher` resolves them);
+    ``photometric``: what is corrected before matching (True, False or
+    ``armstereo.photometric.PhotometricOptions``; the vignetting model is the recording's
+    mount file's); ``mount`` (a CameraMount) reconstructs every pair as if the camera had that
+    mount instead of the recorded one (:mod:`armstereo.recording.remount`; its vignetting then
+    applies)."""
 
     voxel: float = DEFAULT_VOXEL_M
     trunc: float | None = None
@@ -94,6 +102,8 @@ class FusionOptions:
     seed: int = 0
     stereo_options: dict | None = None
     stereo: StereoOptions | None = None
+    photometric: Any = True
+    mount: Any = None
 
     def __post_init__(self) -> None:
         if self.method is None:  # frozen: set once, here
@@ -144,6 +154,7 @@ class PairDepth:
     seconds: float
     views: tuple[ViewPose, ...] = ()
     timings_s: dict[str, float] = field(default_factory=dict)
+    photometric: dict = field(default_factory=dict)  # what the correction did (report)
 
 
 def fuse_recording(recording: str | Path, out_dir: str | Path,
@@ -344,20 +355,24 @@ def _pair_job(rec: Recording, k: int, o: FusionOptions, threads: int | None = No
     from armstereo.reconstruct.pipeline import reconstruct_pair
 
     pair = rec.pairs[k]
+    if o.mount is not None:
+        pair = remounted(pair, o.mount)
     t0 = time.perf_counter()
     if o.depth_source == "truth":
         frame = frame_from_truth(pair)
         pts = frame_points(frame)
         timings: dict[str, float] = {}
+        photometric: dict = {}
         left, right = pair.left, pair.right
     else:
         stereo = o.matcher
         if threads is not None and isinstance(stereo, BirchfieldOptions):
             stereo = dataclasses.replace(stereo, threads=threads)
-        recon = reconstruct_pair(pair, stereo=stereo)
+        recon = reconstruct_pair(pair, stereo=stereo, photometric=_photometric(o, rec))
         frame = frame_from_reconstruction(recon)
         pts = recon.points_base
         timings = dict(recon.timings_s)
+        photometric = recon.photometric
         left, right = ((pair.right, pair.left) if recon.swapped else (pair.left, pair.right))
     rng = np.random.default_rng(o.seed + k)
     keep = (rng.choice(len(pts), RAW_POINTS_PER_PAIR, replace=False)
@@ -366,7 +381,7 @@ def _pair_job(rec: Recording, k: int, o: FusionOptions, threads: int | None = No
                            v.intrinsics.size, int(v.timestamp_ns)) for v in (pair.left, pair.right))
     return PairDepth(pair.index, left.index, right.index, int(left.timestamp_ns), frame,
                      np.asarray(pts, dtype=np.float32)[np.sort(keep)], len(pts),
-                     time.perf_counter() - t0, views, timings)
+                     time.perf_counter() - t0, views, timings, photometric)
 
 
 # ---------------------------------------------------------------------------- roi, report
@@ -390,7 +405,8 @@ def _report(rec: Recording, o: FusionOptions, roi: Roi, roi_source: str, volume:
     per_pair = [{"pair": r.pair, "left_view": r.left_view, "right_view": r.right_view,
                  "points": r.raw_point_count, "voxels_updated": int(u),
                  "mesh_vertices_seen": int(s), "reconstruct_s": round(r.seconds, 3),
-                 "integrate_s": round(t, 3)}
+                 "integrate_s": round(t, 3),
+                 "exposure_gains": r.photometric.get("exposure", {}).get("gains")}
                 for r, (u, t, s) in zip(results, contributions, strict=True)]
     return {
         "views": len(results), "voxel_m": o.voxel, "trunc_m": o.trunc_m,
@@ -404,9 +420,29 @@ def _report(rec: Recording, o: FusionOptions, roi: Roi, roi_source: str, volume:
         "mesh": {"vertices": len(mesh.vertices), "faces": len(mesh), "area_m2": mesh.area()},
         "fused_points": len(cloud), "single_view_points": len(mesh.vertices) - len(cloud),
         "min_views": o.min_views,
+        "photometric": _photometric_summary(o, rec, results),
         "memory_mb": {"tsdf": round(volume.memory_bytes / 2**20, 1)},
         "pairs": per_pair, "source": str(rec.path), "armstereo_version": __version__,
     }
+
+
+def _photometric(o: FusionOptions, rec: Recording):
+    """The photometric options of every pair: the vignetting of ``o.mount`` or else of the
+    recording's mount file."""
+    if o.mount is not None:
+        return as_options(o.photometric).with_model(o.mount.vignetting)
+    return for_recording(o.photometric, rec.metadata)
+
+
+def _photometric_summary(o: FusionOptions, rec: Recording, results: list[PairDepth]) -> dict:
+    """What the photometric correction did over the pairs (per pair gains are in ``pairs``)."""
+    if o.depth_source != "stereo":
+        return {"vignetting": {"applied": False}, "exposure": {"applied": False}}
+    opts = _photometric(o, rec)
+    first = next((r.photometric for r in results if r.photometric), {})
+    applied = sum(bool(r.photometric.get("exposure", {}).get("applied")) for r in results)
+    return {"vignetting": first.get("vignetting", {"applied": opts.removes_vignetting}),
+            "exposure": {"requested": opts.exposure, "pairs_corrected": applied}}
 
 
 def _score(truth: SceneTruth, pairs, roi: Roi, mesh, cloud: np.ndarray,

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from armstereo.errors import RecordingError
+from armstereo.photometric.correct import PhotometricOptions
 from armstereo.reconstruct.stereo_options import StereoOptions
 from armstereo.reconstruct.views import Reconstruction, reconstruct_views
 from armstereo.recording import Pair
@@ -33,8 +34,9 @@ class PairReconstruction(Reconstruction):
 
     @property
     def pipeline_time_s(self) -> float:
-        """decode + rectify + match + triangulate + write (PLY), what the 0.5 s target counts."""
-        stages = ("decode", "rectify", "match", "triangulate", "write")
+        """decode + photometric + rectify + match + triangulate + write (PLY), what the 0.5 s
+        target counts."""
+        stages = ("decode", "photometric", "rectify", "match", "triangulate", "write")
         return float(sum(self.timings_s.get(k, 0.0) for k in stages))
 
 
@@ -60,11 +62,15 @@ def _view_inputs(pair: Pair, which: str):
 def reconstruct_pair(pair: Pair, *, method: str | None = None,
                      max_disparity: int | str = "auto", near: float | None = None,
                      far: float | None = None, stereo_options: dict | None = None,
-                     stereo: StereoOptions | None = None) -> PairReconstruction:
+                     stereo: StereoOptions | None = None,
+                     photometric: bool | PhotometricOptions = True) -> PairReconstruction:
     """Rectify, match and triangulate one recorded pair (``armstereo.recording.Pair``);
     ``max_disparity`` is the matcher's budget ("auto" or a number of labels); ``stereo`` (an
     options object) or ``method`` and ``stereo_options`` say how to match, as
-    :func:`~armstereo.reconstruct.views.reconstruct_views` takes them.
+    :func:`~armstereo.reconstruct.views.reconstruct_views` takes them. ``photometric`` as
+    :func:`~armstereo.reconstruct.views.reconstruct_views` takes it; the camera's vignetting
+    is the options' model (``armstereo.photometric.correct.for_recording(photometric,
+    recording.metadata)`` takes it from the recording's mount file).
 
     Raises RecordingError for a pair without poses, calibration or images, ConfigError for bad
     options and StereoError when the geometry cannot be rectified.
@@ -76,7 +82,7 @@ def reconstruct_pair(pair: Pair, *, method: str | None = None,
     recon = reconstruct_views(img1, img2, intr1.K, intr2.K, T1, T2, dist1=intr1.dist,
                               dist2=intr2.dist, method=method, near=near, far=far,
                               disparity_budget=max_disparity, stereo_options=stereo_options,
-                              stereo=stereo)
+                              stereo=stereo, photometric=photometric)
     left, right = (pair.right, pair.left) if recon.swapped else (pair.left, pair.right)
     fields = {f: getattr(recon, f) for f in Reconstruction.__dataclass_fields__}
     fields["timings_s"] = {"decode": decode_s, **recon.timings_s}

@@ -20,7 +20,7 @@ from __future__ import annotations
 import logging
 import time
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
@@ -28,6 +28,13 @@ import numpy as np
 from armstereo.camera_model import Intrinsics
 from armstereo.errors import ConfigError, StereoError
 from armstereo.io.images import colorize_disparity
+from armstereo.photometric.correct import (
+    PhotometricOptions,
+    as_options,
+    equalize_exposure,
+    record,
+    remove_vignetting,
+)
 from armstereo.reconstruct.rectified import RectifiedPair
 from armstereo.reconstruct.rectify import RectificationPlan
 from armstereo.reconstruct.stereo import disparity as match_pair
@@ -64,6 +71,8 @@ class Reconstruction:
     points_base: np.ndarray
     colors_bgr: np.ndarray
     timings_s: dict[str, float] = field(default_factory=dict)
+    # What the photometric correction did (armstereo.photometric.correct.record).
+    photometric: dict = field(default_factory=dict)
 
     @property
     def points(self) -> np.ndarray:
@@ -98,7 +107,8 @@ def reconstruct_views(image1: np.ndarray, image2: np.ndarray, K1: np.ndarray, K2
                       far: float | None = None, min_disparity: float | None = None,
                       max_disparity: float | None = None, disparity_budget: int | str = "auto",
                       stereo_options: dict | None = None,
-                      stereo: StereoOptions | None = None) -> Reconstruction:
+                      stereo: StereoOptions | None = None,
+                      photometric: bool | PhotometricOptions = True) -> Reconstruction:
     """Rectify, match and triangulate two views of a static scene.
 
     ``image1``/``image2``: uint8 grey or BGR images. ``K1``/``K2``: 3x3 camera matrices,
@@ -112,12 +122,19 @@ def reconstruct_views(image1: np.ndarray, image2: np.ndarray, K1: np.ndarray, K2
     (:class:`~armstereo.reconstruct.stereo_options.BirchfieldOptions`, the default, or
     ``SgbmOptions``); or ``method`` ("birchfield" or "sgbm") with the older ``stereo_options``
     dict of the matcher's keywords. The result records the options (``stereo``).
+    ``photometric``: what is corrected before matching (:mod:`armstereo.photometric.correct`):
+    True (default) equalises the pair's exposure and white balance and, when the options carry
+    the camera's vignetting model (a mount file's ``[vignetting]``), divides it out; False
+    corrects nothing. What was done is in ``result.photometric``.
 
     Raises ConfigError for bad options, StereoError when the pair cannot be rectified or
     matched (no baseline, views that do not overlap, mismatched images).
     """
     matcher = _matcher(method, stereo, stereo_options)
     timings: dict[str, float] = {}
+    photo = as_options(photometric)
+    with _timed(timings, "photometric"):
+        image1, image2 = remove_vignetting(image1, image2, photo)
     with _timed(timings, "rectify"):
         # the poses are checked and the rectification solved once, for both steps below
         plan = RectificationPlan.from_views(_intrinsics(image1, K1, dist1, "1"), T_base_cam1,
@@ -129,6 +146,10 @@ def reconstruct_views(image1: np.ndarray, image2: np.ndarray, K1: np.ndarray, K2
                                near=near, far=far, max_disparity=disparity_budget)
         rect = plan.rectify(image1, image2, depth_range=(window.near, window.far))
         window = fit_to_canvas(window, rect.geometry, auto=disparity_budget == "auto")
+    with _timed(timings, "photometric", add=True):
+        right, gains = equalize_exposure(rect.left, rect.right, window.max_disparity, photo,
+                                         left_mask=rect.left_mask, right_mask=rect.right_mask)
+        rect = rect if right is rect.right else replace(rect, right=right)
     log.debug("left = view %d%s, rotation %.0f deg, baseline %.1f mm, depth %.3f-%.3f m -> "
               "disparities 0..%d (%s)", 2 if swapped else 1, " (swapped)" if swapped else "",
               rect.rotation_deg, rect.baseline * 1000, window.near, window.far,
@@ -142,7 +163,7 @@ def reconstruct_views(image1: np.ndarray, image2: np.ndarray, K1: np.ndarray, K2
     return Reconstruction(swapped=swapped, method=matcher.method, stereo=matcher,
                           window=window, rectified=rect,
                           disparity=disparity, points_base=points, colors_bgr=colors,
-                          timings_s=timings)
+                          timings_s=timings, photometric=record(photo, gains))
 
 
 def _matcher(method: str | None, stereo: StereoOptions | None,
@@ -182,9 +203,9 @@ def _depth_range(geometry, near, far, min_disparity, max_disparity):
 
 
 @contextmanager
-def _timed(timings: dict[str, float], stage: str):
+def _timed(timings: dict[str, float], stage: str, add: bool = False):
     t0 = time.perf_counter()
     try:
         yield
     finally:
-        timings[stage] = time.perf_counter() - t0
+        timings[stage] = (timings.get(stage, 0.0) if add else 0.0) + time.perf_counter() - t0

@@ -40,6 +40,7 @@ from armstereo.transforms import as_rigid, make_T, matrix_to_rotvec, rotvec_to_m
 from armstereo.validate import positive
 from drivers.mock.faults import FAULT_FRACTION, Fault, FaultPlan
 from drivers.mock.profile import IDEAL, TAG_JOINTS, MockProfile, get_profile, rng_for
+from drivers.mock.residual import PoseResidual
 
 if TYPE_CHECKING:
     from armstereo.kinematics import ArmModel
@@ -105,6 +106,9 @@ class MockArm(Arm):
         self.profile = get_profile(profile)
         self.believed_model = model
         self.model, self.true_table = _true_kinematics(model, self.profile, seed)
+        # what the controller's calibration leaves (realistic profile): physical pose only
+        self._residual = (PoseResidual(self.profile.residual, seed)
+                          if self.profile.residual.any else None)
         self.kinematics = None  # what the arm broadcast at connect (realistic profile)
         self.name = name
         self.clock = clock if clock is not None else (RealClock() if realtime else SimClock())
@@ -191,10 +195,14 @@ class MockArm(Arm):
         return self.joints_and_controller_pose()[1]
 
     def true_flange_pose(self) -> np.ndarray:
-        """Where the flange physically is now (true kinematics of the true, ringing joints);
-        what the mock camera renders from. Nothing a real arm could report."""
+        """Where the flange physically is now (true kinematics of the true, ringing joints,
+        and what the controller's calibration leaves of the pose error, the profile's
+        ``residual``); what the mock camera renders from. Nothing a real arm could report."""
         self._require_link()
-        return self.model.flange_pose(self._true_q())
+        q = self._true_q()
+        if self._residual is None:
+            return self.model.flange_pose(q)
+        return self.model.flange_pose(q) @ self._residual.at(q)
 
     def wait_until_steady(self, timeout: float = 10.0) -> None:
         """Moves block until the arm stops; with ringing, wait (on the clock) until it is
@@ -336,6 +344,8 @@ class MockArm(Arm):
                                 f"than the {timeout:g} s timeout; stopped at {reached:.0%} of "
                                 f"the path")
         self.commanded_q = qs[-1].copy()
+        if self._residual is not None:
+            self._residual.moved()
         if self.joint_noise > 0:
             noisy = qs[-1] + self._rng.normal(0.0, self.joint_noise, 6)
             self._q = np.clip(noisy, self.model.lower, self.model.upper)

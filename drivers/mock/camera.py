@@ -25,25 +25,21 @@ from armstereo.camera_model import Intrinsics
 from armstereo.clock import Clock, SimClock
 from armstereo.devices import Arm, Camera, Frame
 from armstereo.errors import CameraTimeout, ConfigError
+from armstereo.photometric.vignetting import Vignetting
+from drivers.mock.cell import cell_camera, true_intrinsics, true_mount
 from drivers.mock.faults import FaultPlan
 from drivers.mock.imaging import apply_effects, view_gains
-from drivers.mock.profile import (
-    TAG_IMAGE,
-    TAG_INTRINSICS,
-    ImageEffects,
-    IntrinsicsErrors,
-    MockProfile,
-    hand_eye_error,
-    offset_transform,
-    rng_for,
-)
-from drivers.mock.scene import Scene, default_table_scene
+from drivers.mock.profile import TAG_IMAGE, ImageEffects, MockProfile, rng_for
+from drivers.mock.render import Scene
+from drivers.mock.scene import default_table_scene
 
 if TYPE_CHECKING:
     from armstereo.kinematics import ArmModel
     from drivers.mock.config import MockCameraConfig
 
 log = logging.getLogger(__name__)
+
+__all__ = ["DEFAULT_FRAME_PERIOD_S", "MockCamera", "true_intrinsics", "true_mount"]
 
 DEFAULT_FRAME_PERIOD_S = 1 / 30  # a grab waits for the next exposure
 
@@ -61,7 +57,8 @@ class MockCamera(Camera):
                  noise_sigma: float = 0.0, seed: int = 0, faults: FaultPlan | None = None,
                  supersample: int = 2, frame_period: float = DEFAULT_FRAME_PERIOD_S,
                  name: str = "mock camera", true_intrinsics: Intrinsics | None = None,
-                 effects: ImageEffects | None = None, truth: dict | None = None):
+                 effects: ImageEffects | None = None, truth: dict | None = None,
+                 vignetting: Vignetting | None = None):
         if not isinstance(intrinsics, Intrinsics):
             raise ConfigError(f"{name}: intrinsics must be an Intrinsics, got "
                               f"{type(intrinsics).__name__}")
@@ -77,6 +74,7 @@ class MockCamera(Camera):
             raise ConfigError(f"{name}: true intrinsics are {self.true_intrinsics.size}, the "
                               f"reported ones {intrinsics.size}")
         self.effects = ImageEffects() if effects is None else effects
+        self.vignetting = vignetting  # the lens's own fall-off (None: effects' default)
         self._truth = dict(truth or {})
         self._effects_rng = rng_for(seed, TAG_IMAGE)
         self._pose_source = pose_source
@@ -99,11 +97,12 @@ class MockCamera(Camera):
         kinematics of the arm's actual joints through ``model``; then through the camera's
         true hand-eye transform (the mount's, with the profile's error and
         ``config.hand_eye_offset``) and true intrinsics. With ``config.board`` the scene is
-        the table cleared for that calibration board (:mod:`drivers.mock.board`)."""
+        the table cleared for that calibration board (:mod:`drivers.mock.board`). The true
+        camera is the cell's (:func:`drivers.mock.cell.cell_camera`)."""
         profile: MockProfile = config.profile
-        true = true_mount(config.truth_mount or model.mount, profile, config.seed,
-                          config.hand_eye_offset)
-        T_flange_true, true_intr = true.T_flange_camera, true.intrinsics
+        cell = cell_camera(profile, config.seed, model.mount, reference=config.truth_mount,
+                           offset=config.hand_eye_offset)
+        T_flange_true, true_intr = cell.mount.T_flange_camera, cell.mount.intrinsics
         flange = _flange_source(arm, model)
         scene = config.scene
         if scene is None:
@@ -113,14 +112,13 @@ class MockCamera(Camera):
         if config.board is not None:
             from drivers.mock.board import calibration_scene
 
-            scene = calibration_scene(config.board, scene, config.seed)
-        truth = {"profile": profile.name, "T_flange_camera": T_flange_true.tolist(),
-                 "K": true_intr.K.tolist(), "dist": true_intr.dist.tolist(),
-                 "hand_eye_offset": list(config.hand_eye_offset or ())}
+            scene = calibration_scene(config.board, scene, config.seed, profile.board)
         return cls(model.mount.intrinsics, lambda: flange() @ T_flange_true, scene=scene,
                    clock=arm.clock, noise_sigma=config.noise, seed=config.seed,
                    faults=config.fault_plan, true_intrinsics=true_intr,
-                   effects=profile.image, truth=truth)
+                   effects=profile.image,
+                   truth=cell.truth(profile, config.seed, config.hand_eye_offset),
+                   vignetting=cell.vignetting)
 
     def connect(self) -> None:
         """Open the (simulated) device; raises NotConnected if it is already open."""
@@ -138,12 +136,15 @@ class MockCamera(Camera):
         """The scene's exact geometry (``scene_truth``, JSON; see
         :mod:`armstereo.evaluation.scene_truth`), for scoring reconstructions; with a mock
         profile also ``mock_camera_truth`` (JSON: profile name, the TRUE ``T_flange_camera``,
-        ``K`` and ``dist``, the hand-eye offset asked for), for error analysis."""
+        ``K`` and ``dist``, the hand-eye offset asked for, the vignetting, the cell), for
+        error analysis, and ``mock_cell`` (which cell: ``realistic seed 0``)."""
         out = {"scene_truth": self.scene.truth().to_json()}
         if self._truth:
             import json
 
             out["mock_camera_truth"] = json.dumps(self._truth)
+            if "cell" in self._truth:
+                out["mock_cell"] = self._truth["cell"]
         return out
 
     @property
@@ -172,7 +173,8 @@ class MockCamera(Camera):
         image, depth = self.scene.render(self._pose_source(), self.true_intrinsics,
                                          supersample=self.supersample)
         gains = view_gains(self.effects, self._effects_rng) if self.effects.any else None
-        image = apply_effects(image, self.effects, self._effects_rng, gains)
+        image = apply_effects(image, self.effects, self._effects_rng, gains,
+                              vignetting=self.vignetting)
         if self.noise_sigma > 0:
             noisy = image + self._rng.normal(0.0, self.noise_sigma, image.shape)
             image = np.clip(np.rint(noisy), 0, 255).astype(np.uint8)
@@ -190,35 +192,6 @@ def reported_settings(effects: ImageEffects, gains: np.ndarray | None) -> dict |
         return None
     b, g, r = (float(x) for x in gains)
     return {"exposure": g, "balance_ratio": [r / g, 1.0, b / g]}
-
-
-def true_mount(mount, profile: MockProfile, seed: int, offset=None):
-    """The camera's TRUE mount (a CameraMount): ``mount``'s hand-eye transform with the
-    profile's seeded error and ``offset`` (dx, dy, dz m, rx, ry, rz deg; camera frame), and its
-    intrinsics with the profile's seeded errors. What a perfect calibration would measure."""
-    from dataclasses import replace
-
-    T = (mount.T_flange_camera @ hand_eye_error(profile.hand_eye, seed)
-         @ offset_transform(offset))
-    return replace(mount, name=f"{mount.name} (true, {profile.name} seed {seed})",
-                   T_flange_camera=T,
-                   intrinsics=true_intrinsics(mount.intrinsics, profile.intrinsics, seed))
-
-
-def true_intrinsics(believed: Intrinsics, errors: IntrinsicsErrors, seed: int) -> Intrinsics:
-    """The camera's TRUE intrinsics: ``believed`` (the mount file's) with seeded errors of the
-    sizes in ``errors`` (focal lengths relative, principal point in px, k1 and k2)."""
-    unit = rng_for(seed, TAG_INTRINSICS).standard_normal(6)  # always drawn: reproducible
-    K = believed.K.copy()
-    K[0, 0] *= 1.0 + errors.focal_rel * unit[0]
-    K[1, 1] *= 1.0 + errors.focal_rel * unit[1]
-    K[0, 2] += errors.principal_px * unit[2]
-    K[1, 2] += errors.principal_px * unit[3]
-    dist = np.zeros(max(5, believed.dist.size))
-    dist[:believed.dist.size] = believed.dist
-    dist[0] += errors.radial * unit[4]
-    dist[1] += errors.radial * unit[5]
-    return Intrinsics(believed.width, believed.height, K, dist)
 
 
 def _flange_source(arm: Arm, model: ArmModel) -> Callable[[], np.ndarray]:

@@ -21,19 +21,10 @@ import numpy as np
 
 from armstereo.errors import ConfigError
 from armstereo.transforms import make_T
-from drivers.mock.scene import (
-    FLOOR_Z,
-    SCENE_CENTER,
-    TABLE_HALF_SIZE,
-    Box,
-    Cylinder,
-    PhotoTexture,
-    Rectangle,
-    Scene,
-    Sphere,
-    Texture,
-    default_table_scene,
-)
+from drivers.mock.primitives import Box, Cylinder, Rectangle, Sphere
+from drivers.mock.render import Scene
+from drivers.mock.scene import FLOOR_Z, SCENE_CENTER, TABLE_HALF_SIZE, default_table_scene
+from drivers.mock.texture import PhotoTexture, Texture
 
 TEXTURES_DIR = Path(__file__).with_name("textures")
 KEY_PITCH_M = 0.019  # a keyboard's key pitch

@@ -14,6 +14,7 @@ import functools
 import cv2
 import numpy as np
 
+from armstereo.photometric.vignetting import Vignetting
 from drivers.mock.profile import ImageEffects
 
 
@@ -27,22 +28,27 @@ def view_gains(effects: ImageEffects, rng: np.random.Generator) -> np.ndarray:
 @functools.lru_cache(maxsize=4)
 def vignetting_map(height: int, width: int, strength: float) -> np.ndarray:
     """Relative brightness (H, W) float32: 1 at the image centre, ``1 - strength`` at the
-    corners, falling with the squared distance from the centre (the cos^4 law's first term)."""
+    corners, falling with the squared distance from the centre (the cos^4 law's first term).
+    For a lens without a fall-off of its own (:func:`drivers.mock.cell.true_vignetting`)."""
     v, u = np.mgrid[0:height, 0:width].astype(np.float32)
     r2 = ((u - (width - 1) / 2) ** 2 + (v - (height - 1) / 2) ** 2)
     return (1.0 - strength * r2 / r2.max()).astype(np.float32)
 
 
 def apply_effects(image: np.ndarray, effects: ImageEffects, rng: np.random.Generator,
-                  gains: np.ndarray | None = None) -> np.ndarray:
+                  gains: np.ndarray | None = None,
+                  vignetting: Vignetting | None = None) -> np.ndarray:
     """``image`` (H, W, 3) uint8 BGR as the sensor delivers it; ``gains`` (3,) the view's
-    exposure and white balance (default: drawn from ``rng``)."""
+    exposure and white balance (default: drawn from ``rng``); ``vignetting`` the lens's own
+    fall-off (default: the centred quadratic of ``effects.vignetting``)."""
     if not effects.any:
         return image
     img = image.astype(np.float32)
     h, w = img.shape[:2]
     if effects.vignetting > 0:
-        img *= vignetting_map(h, w, float(effects.vignetting))[..., None]
+        fall_off = (vignetting.gain_map() if vignetting is not None
+                    else vignetting_map(h, w, float(effects.vignetting)))
+        img *= fall_off[..., None]
     gains = view_gains(effects, rng) if gains is None else np.asarray(gains, dtype=np.float32)
     img *= gains.astype(np.float32)
     if effects.blur_sigma_px > 0:

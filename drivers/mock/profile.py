@@ -12,12 +12,22 @@ switch them on one by one (``dataclasses.replace``; see bench/error_budget.py):
   the flange), which the arm broadcasts like a controller (:mod:`drivers.mock.broadcast`).
 - ``joints``: every joint reading carries encoder noise, and after a move the joints ring
   with a small decaying oscillation (what ``wait_until_steady`` and the settle time wait out).
-- ``hand_eye``: the camera's true ``T_flange_camera`` differs from the mount file's by a
-  seeded error the size of a good hand-eye calibration's (about 1 mm, 0.1 deg per axis).
-- ``intrinsics``: true focal lengths, principal point and distortion differ from the mount
-  file's by a good calibration's residuals (0.3 %, 1.5 px, 0.01).
+- ``hand_eye``: the camera's true ``T_flange_camera`` differs from the bundled mount file's
+  by a seeded error the size of a CAD drawing's (a few mm, about a degree).
+- ``intrinsics``: true focal lengths and principal point differ from the bundled mount file's
+  datasheet values by a few percent and pixels, and the lens has radial distortion the file
+  does not know.
+- ``residual``: the arm's pose error its controller's calibration leaves (a tenth of a
+  millimetre, varying with the joints) and its repeatability.
 - ``image``: photon and read noise, defocus blur, vignetting, and a small exposure and white
   balance change between views.
+- ``board``: what a printed calibration board adds (print scale error, a board that is not
+  flat, glare on its laminate).
+
+A profile and a seed are one physical cell (:mod:`drivers.mock.cell`): every command that runs
+on the mock (calibrate, capture, scan, sweep, demo) sees the same arm, the same camera and the
+same table. On ``realistic`` the camera is the cell's own, whatever mount file the software is
+given; on ``ideal`` it is exactly the mount file the software uses.
 - ``scene``: ``desk`` (photographed wood, brick, gravel and paper, a plain low-texture table
   top, a repetitive pattern, glossy objects whose highlights move between views) instead of
   ``table`` (band-limited textures made for the matcher).
@@ -41,6 +51,10 @@ TAG_JOINTS = 11
 TAG_HAND_EYE = 12
 TAG_INTRINSICS = 13
 TAG_IMAGE = 14
+TAG_VIGNETTING = 15
+TAG_RESIDUAL = 16
+TAG_REPEAT = 17
+TAG_BOARD = 18
 
 
 @dataclass(frozen=True)
@@ -72,20 +86,24 @@ class HandEyeErrors:
 class IntrinsicsErrors:
     """One standard deviation of the true intrinsics' differences from the mount file:
     relative focal length (fx, fy each), principal point (px, cx and cy each), and the first
-    two radial distortion terms (k1, k2)."""
+    two radial distortion terms (k1, k2), about ``radial_mean``."""
 
     focal_rel: float = 0.0
     principal_px: float = 0.0
     radial: float = 0.0
+    # The lens's own radial distortion (k1, k2) added to the mount file's: a datasheet mount
+    # says "no distortion", the lens has some.
+    radial_mean: tuple[float, float] = (0.0, 0.0)
 
 
 @dataclass(frozen=True)
 class ImageEffects:
     """What a real sensor and lens do to an image. ``read_noise`` grey levels and
     ``shot_noise_gain`` (variance per grey level: photon noise); ``blur_sigma_px`` Gaussian
-    defocus; ``vignetting``: relative brightness lost at the image corners (cos^4-like
-    falloff); ``exposure_rel`` and ``white_balance_rel``: standard deviation of the per-view
-    overall gain and of each channel's extra gain."""
+    defocus; ``vignetting``: relative brightness lost at the image corners (mean over cells;
+    each cell's lens draws its own fall-off about it, :func:`drivers.mock.cell.true_vignetting`);
+    ``exposure_rel`` and ``white_balance_rel``: standard deviation of the per-view overall gain
+    and of each channel's extra gain."""
 
     read_noise: float = 0.0
     shot_noise_gain: float = 0.0
@@ -101,6 +119,37 @@ class ImageEffects:
 
 
 @dataclass(frozen=True)
+class ArmResidual:
+    """What is left of the arm's pose error once its controller's calibrated kinematics are
+    used (one standard deviation per axis, flange frame): a smooth function of the joints
+    (``translation_m``, ``rotation_rad``: gear and elastic errors no DH table holds) and a fresh
+    error after every move (``repeat_m``, ``repeat_rad``: repeatability)."""
+
+    translation_m: float = 0.0
+    rotation_rad: float = 0.0
+    repeat_m: float = 0.0
+    repeat_rad: float = 0.0
+
+    @property
+    def any(self) -> bool:
+        return any(v > 0 for v in (self.translation_m, self.rotation_rad, self.repeat_m,
+                                   self.repeat_rad))
+
+
+@dataclass(frozen=True)
+class BoardErrors:
+    """What a printed calibration board adds: the print's scale error (one standard
+    deviation, relative: squares that much larger than the spec says), how far the board
+    bows (sag of its centre against its corners, m, one standard deviation) and the glare of
+    its laminate (Blinn-Phong highlight strength, share of full white; 0 = matte paper)."""
+
+    scale_rel: float = 0.0
+    bow_m: float = 0.0
+    glare: float = 0.0
+    glare_shininess: float = 60.0
+
+
+@dataclass(frozen=True)
 class MockProfile:
     """A named set of error sources (see the module doc). ``kinematics``: the arm's true
     kinematics are a seeded factory calibration (else exactly the software's model)."""
@@ -112,17 +161,27 @@ class MockProfile:
     intrinsics: IntrinsicsErrors = field(default_factory=IntrinsicsErrors)
     image: ImageEffects = field(default_factory=ImageEffects)
     scene: str = "table"
+    residual: ArmResidual = field(default_factory=ArmResidual)
+    board: BoardErrors = field(default_factory=BoardErrors)
+    # True: the camera is the cell's own (the bundled mount with the hand-eye and intrinsics
+    # errors), whatever mount file the software uses; False: exactly the software's mount.
+    cell_camera: bool = False
 
 
 IDEAL = MockProfile("ideal")
 REALISTIC = MockProfile(
     "realistic", kinematics=True,
     joints=JointErrors(encoder_noise_rad=1e-5, settle_amplitude_rad=2e-4),
-    hand_eye=HandEyeErrors(translation_m=1e-3, rotation_rad=math.radians(0.1)),
-    intrinsics=IntrinsicsErrors(focal_rel=0.003, principal_px=1.5, radial=0.01),
+    hand_eye=HandEyeErrors(translation_m=2.5e-3, rotation_rad=math.radians(0.6)),
+    intrinsics=IntrinsicsErrors(focal_rel=0.02, principal_px=5.0, radial=0.02,
+                                radial_mean=(-0.10, 0.05)),
     image=ImageEffects(read_noise=1.5, shot_noise_gain=0.03, blur_sigma_px=0.7, vignetting=0.25,
                        exposure_rel=0.02, white_balance_rel=0.01),
-    scene="desk")
+    scene="desk",
+    residual=ArmResidual(translation_m=5e-5, rotation_rad=5e-5, repeat_m=1e-5,
+                         repeat_rad=1e-5),
+    board=BoardErrors(scale_rel=0.002, bow_m=0.0005, glare=0.6, glare_shininess=600.0),
+    cell_camera=True)
 PROFILES = {p.name: p for p in (IDEAL, REALISTIC)}
 PROFILE_NAMES = tuple(PROFILES)
 SCENES = ("table", "desk")

@@ -18,14 +18,17 @@ def demo(tmp_path_factory):
 
     stdout = io.StringIO()
     with contextlib.redirect_stdout(stdout):
-        code = main(["-q", "demo", "--scan", "--views", "ring:2", "--out", str(out)])
+        code = main(["-q", "demo", "--scan", "--views", "ring:2", "--mock-profile", "ideal",
+                     "--no-calibrate", "--out", str(out)])
     return code, stdout.getvalue(), out
 
 
 def test_writes_every_file_and_a_report(demo):
     code, text, out = demo
     assert code == 0
-    assert {p.name for p in out.iterdir()} == set(SCAN_DEMO_FILES)
+    # without the calibration: no mount file, calibration files or bundled fusion
+    assert {p.name for p in out.iterdir()} == set(SCAN_DEMO_FILES) - {
+        "camera.toml", "calibration.mcap", "calibration.json", "fused_bundled"}
     assert {p.name for p in (out / "fused").iterdir()} >= {"mesh.ply", "fused.ply",
                                                           "fusion.mcap", "report.json"}
     report = json.loads((out / "report.json").read_text())
@@ -35,8 +38,8 @@ def test_writes_every_file_and_a_report(demo):
             "total"} <= set(report["timings_s"])
     assert report["accuracy"]["accuracy_mean_mm"] < 1.5
     assert set(report["targets"]) == {"accuracy_mean_mm", "completeness_within_5mm", "met"}
-    for word in ("profile:", "scan:", "fused:", "accuracy:", "complete:", "time:", "memory:",
-                 "files:"):
+    for word in ("cell:", "camera:", "scan:", "fused:", "accuracy:", "complete:", "time:",
+                 "memory:", "files:"):
         assert word in text
 
 

@@ -70,8 +70,12 @@ def test_bad_targets_and_baselines_are_refused(capsys):
 
 @pytest.mark.slow
 def test_desk_sweep_on_the_realistic_profile(tmp_path, capsys):
-    """The realistic profile sweeps the desk (the demo scene), where long baselines lose
-    pixels to occlusion and perspective change, which planar targets never do."""
+    """The realistic profile sweeps the desk (the demo scene) with the cell's camera
+    calibrated once (camera.toml). With the camera calibrated, the depth error falls with the
+    baseline as the disparity grows, and the density over the pixels both views see holds
+    (measured 0.42 % / 90 % at 5 cm, 0.06 % / 93 % at 30 cm with SGBM; with the bundled mount
+    file, errors that grow with the baseline had cost the long baselines a third of their
+    matches)."""
     out = tmp_path / "desk"
     assert main(["sweep", "--mock-profile", "realistic", "--baselines", "0.05,0.3",
                  "--method", "sgbm", "--out", str(out)]) == 0
@@ -79,10 +83,12 @@ def test_desk_sweep_on_the_realistic_profile(tmp_path, capsys):
     rows = {float(line.split("cm")[0]): line for line in text.splitlines()
             if line.strip().endswith("mm") and "cm |" in line}
     assert set(rows) == {5.0, 30.0}
+    error = {b: float(r.split("|")[1].strip(" %")) for b, r in rows.items()}
     density = {b: float(r.split("|")[3].strip(" %")) for b, r in rows.items()}
-    assert density[30.0] < density[5.0] - 10  # 30 cm: a third of the view has no match
-    assert "best baseline for the desk at 0.55 m: 5 cm" in text
+    assert error[30.0] < error[5.0] / 3 and min(density.values()) > 85
+    assert "best baseline for the desk at 0.55 m: 30 cm" in text
     assert (out / "sweep.csv").exists() and (out / "sweep.png").exists()
+    assert (out / "camera.toml").exists()  # calibrated once, on the same cell
     assert main(["sweep", "--mock-profile", "realistic", "--distances", "1,2",
                  "--out", str(tmp_path / "x")]) == 2
 

@@ -115,3 +115,67 @@ def test_refining_intrinsics_with_the_arm_removes_the_same_view_bias(ur5e):
         fixed.append(_errors(s, pose_error=None, refine_intrinsics=False)[0][0])
         joint.append(_errors(s, pose_error=None, refine_intrinsics=True)[0][0])
     assert np.mean(joint) < 0.5 * np.mean(fixed)
+
+
+def _shaped_session(ur5e, scale_error: float, curvature: tuple[float, float]):
+    """A session whose board is printed ``1 + scale_error`` times its spec and bowed by
+    ``curvature`` (1/m, board z): the detections carry the spec's object points."""
+    import cv2
+
+    from armstereo.calibration.board import Detection
+    from armstereo.transforms import invert
+
+    s = simulate_session(ur5e, parse_board("chessboard:17x12:0.016"), n_views=12, seed=4,
+                         arm_error="ideal", pixel_noise=0.05)
+    shape = np.array([scale_error, *curvature])
+    center = s.board.center[:2]
+    rng = np.random.default_rng(1)
+    dets = []
+    for F in s.T_base_flange_true:
+        T_cb = invert(F @ s.true_mount.T_flange_camera) @ s.T_base_board
+        P = R.shaped_points(s.board.object_points, shape, center)
+        rvec = cv2.Rodrigues(np.ascontiguousarray(T_cb[:3, :3]))[0]
+        uv, _ = cv2.projectPoints(P, rvec, T_cb[:3, 3], s.true_mount.intrinsics.K,
+                                  s.true_mount.intrinsics.dist)
+        uv = uv.reshape(-1, 2) + rng.normal(size=(len(P), 2)) * 0.05
+        dets.append(Detection(np.arange(len(P)), uv, s.board.object_points.copy()))
+    return s, dets, shape
+
+
+def test_board_shape_columns_match_finite_differences(small_session):
+    s = small_session
+    X0, B0, intr = _start(s)
+    prob = R._Problem(s.detections, s.T_base_flange_reported, X0, B0, intr, 2, True, True,
+                      0.3, 0.0005, 0.0005, np.array([1e-3, 0.02, -0.01]),
+                      s.board.center[:2])
+    rng = np.random.default_rng(2)
+    x = prob.x0() + np.concatenate([rng.normal(size=12) * 1e-3, np.zeros(prob.n_intr),
+                                    np.zeros(3), rng.normal(size=6 * prob.n_views) * 1e-3])
+    J = R._jacobian(prob, x)
+    cols = range(12 + prob.n_intr, prob.n_shared)
+    for k in cols:
+        h = 1e-6
+        xp, xm = x.copy(), x.copy()
+        xp[k] += h
+        xm[k] -= h
+        num = (R._residuals(prob, xp) - R._residuals(prob, xm)) / (2 * h)
+        assert np.abs(J[:, k] - num).max() < 1e-5 * max(np.abs(num).max(), 1.0)
+
+
+def test_a_misprinted_bowed_board_is_measured_instead_of_biasing_the_hand_eye(ur5e):
+    s, dets, shape = _shaped_session(ur5e, 0.003, (0.02, 0.01))
+    X0, B0, intr = _start(s)
+    errors = {}
+    for board_shape in (False, True):
+        res = refine_hand_eye(dets, s.T_base_flange_reported, X0, B0, intr,
+                              pose_error=PoseErrorPrior(), refine_intrinsics=True,
+                              board_shape=board_shape, board_center=s.board.center[:2])
+        errors[board_shape] = pose_difference(res.T_flange_camera,
+                                              s.true_mount.T_flange_camera)
+        if board_shape:
+            assert res.board_shape[0] == pytest.approx(shape[0], abs=2e-4)
+            np.testing.assert_allclose(res.board_shape[1:], shape[1:], atol=0.004)
+            f_true = s.true_mount.intrinsics.fx
+            assert abs(res.intrinsics.fx / f_true - 1) < 5e-4
+    # taken as its spec, the 0.3 % larger board moves the hand-eye by about a millimetre
+    assert errors[False][0] > 5e-4 and errors[True][0] < 0.2 * errors[False][0]

@@ -106,6 +106,7 @@ def test_failed_runs_leave_no_folder(tmp_path, capsys, argv):
 
 
 def test_a_refused_demo_capture_leaves_no_empty_recording(tmp_path, capsys):
+    """The capture's checks run before the calibration: a refused capture writes nothing."""
     code, _, err = run(capsys, "-q", "demo", "--baseline", "0.5", "--out", tmp_path / "d")
     assert code == 3
     one_line(err, "pre-flight")

@@ -74,8 +74,11 @@ def test_the_camera_lands_where_commanded_only_with_the_calibrated_model(nominal
             # where the flange really went, against where the plan meant it to go
             landed[use_table] = np.linalg.norm(arm.true_flange_pose()[:3, 3]
                                                - (start[:3, 3] + step))
-    assert landed[True] < 5e-5  # the encoder noise of the start reading (~10 um) is left
-    assert landed[False] > 2e-4  # planned with nominal FK: the move lands elsewhere
+    # left: the encoder noise of the start reading (~10 um) and what the controller's
+    # calibration cannot hold (the profile's residual, 50 um per axis, and repeatability)
+    assert landed[True] < 1.5e-4
+    assert landed[False] > 2 * landed[True]  # planned with nominal FK: the move lands elsewhere
+    assert landed[False] > 2e-4
 
 
 def test_a_nominal_model_on_a_calibrated_arm_is_caught_by_inspect(nominal, tmp_path):

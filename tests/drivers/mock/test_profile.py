@@ -103,10 +103,12 @@ def test_realistic_camera_differs_from_its_mount_and_reports_the_mount(model):
     mount = model.mount
     truth = true_mount(mount, REALISTIC, seed=3)
     K, K0 = truth.intrinsics.K, mount.intrinsics.K
-    assert 0 < abs(K[0, 0] / K0[0, 0] - 1) < 0.02 and 0 < abs(K[0, 2] - K0[0, 2]) < 8
-    assert 0 < abs(truth.intrinsics.dist[0]) < 0.05
+    # the bundled mount is a datasheet's and a CAD drawing's: percent, pixels, millimetres and
+    # about a degree off, and it knows no distortion
+    assert 0.002 < abs(K[0, 0] / K0[0, 0] - 1) < 0.08 and 0 < abs(K[0, 2] - K0[0, 2]) < 20
+    assert 0.03 < -truth.intrinsics.dist[0] < 0.2
     lin, ang = pose_difference(truth.T_flange_camera, mount.T_flange_camera)
-    assert 1e-4 < lin < 5e-3 and 1e-4 < ang < np.radians(0.5)
+    assert 5e-4 < lin < 15e-3 and np.radians(0.2) < ang < np.radians(3.0)
     arm = connected(model, seed=3)
     cam = backends.build_camera("mock", backends.camera_config("mock", profile="realistic",
                                                                seed=3), model, arm)
