@@ -177,3 +177,14 @@ def rot_z(a: float) -> np.ndarray:
     """Rotation by ``a`` radians about z."""
     c, s = np.cos(a), np.sin(a)
     return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+
+
+def skew_stack(v: np.ndarray) -> np.ndarray:
+    """(K, 3, 3) stack of the cross-product matrices [v]x of vectors v (K, 3):
+    ``skew_stack(v)[k] @ w == np.cross(v[k], w)``."""
+    v = np.asarray(v, dtype=np.float64)
+    out = np.zeros((len(v), 3, 3))
+    out[:, 0, 1], out[:, 0, 2] = -v[:, 2], v[:, 1]
+    out[:, 1, 0], out[:, 1, 2] = v[:, 2], -v[:, 0]
+    out[:, 2, 0], out[:, 2, 1] = -v[:, 1], v[:, 0]
+    return out

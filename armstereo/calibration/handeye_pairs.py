@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from armstereo.calibration.poses import rotvec
-from armstereo.transforms import make_T
+from armstereo.transforms import make_T, skew_stack
 
 
 @dataclass(frozen=True)
@@ -84,15 +84,6 @@ def _quaternions(w: np.ndarray) -> np.ndarray:
     return np.concatenate([np.cos(th / 2)[:, None], np.sin(th / 2)[:, None] * axis], axis=1)
 
 
-def _skews(v: np.ndarray) -> np.ndarray:
-    """(K, 3, 3) of [v]x for v (K, 3)."""
-    out = np.zeros((len(v), 3, 3))
-    out[:, 0, 1], out[:, 0, 2] = -v[:, 2], v[:, 1]
-    out[:, 1, 0], out[:, 1, 2] = v[:, 2], -v[:, 0]
-    out[:, 2, 0], out[:, 2, 1] = -v[:, 1], v[:, 0]
-    return out
-
-
 def _translation(d: PairData, R: np.ndarray, sw: np.ndarray) -> np.ndarray:
     """Least squares (R_A - I) t = R t_B - t_A, rows scaled by sqrt(w)."""
     M = (sw[:, None, None] * (d.Ra - np.eye(3))).reshape(-1, 3)
@@ -110,7 +101,7 @@ def _rotation_of_quaternion(q: np.ndarray) -> np.ndarray:
 def _tsai(d: PairData, sw) -> np.ndarray:
     # modified Rodrigues vectors P = 2 sin(theta/2) axis: skew(Pa + Pb) P' = Pb - Pa
     Pa, Pb = 2 * d.qa[:, 1:], 2 * d.qb[:, 1:]
-    M = (sw[:, None, None] * _skews(Pa + Pb)).reshape(-1, 3)
+    M = (sw[:, None, None] * skew_stack(Pa + Pb)).reshape(-1, 3)
     rhs = (sw[:, None] * (Pb - Pa)).reshape(-1)
     p_ = np.linalg.lstsq(M, rhs, rcond=None)[0]
     q = p_ / np.sqrt(1.0 + p_ @ p_)  # sin(theta/2) axis of X's rotation
@@ -188,9 +179,9 @@ def _daniilidis(d: PairData, sw) -> np.ndarray:
     u, v = d.qa[:, 1:], d.qb[:, 1:]
     u_, v_ = dual(d.qa, d.ta)[:, 1:], dual(d.qb, d.tb)[:, 1:]
     T = np.zeros((K, 6, 8))
-    T[:, :3, 0], T[:, :3, 1:4] = u - v, _skews(u + v)
-    T[:, 3:, 0], T[:, 3:, 1:4] = u_ - v_, _skews(u_ + v_)
-    T[:, 3:, 4], T[:, 3:, 5:8] = u - v, _skews(u + v)
+    T[:, :3, 0], T[:, :3, 1:4] = u - v, skew_stack(u + v)
+    T[:, 3:, 0], T[:, 3:, 1:4] = u_ - v_, skew_stack(u_ + v_)
+    T[:, 3:, 4], T[:, 3:, 5:8] = u - v, skew_stack(u + v)
     _, _, Vt = np.linalg.svd((sw[:, None, None] * T).reshape(-1, 8), full_matrices=False)
     v1, v2 = Vt[6], Vt[7]
     u1, w1, u2, w2 = v1[:4], v1[4:], v2[:4], v2[4:]

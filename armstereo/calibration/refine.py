@@ -43,7 +43,7 @@ from armstereo.calibration.intrinsics import DISTORTION_MODELS
 from armstereo.calibration.poses import chart_jacobian, exp6
 from armstereo.camera_model import Intrinsics
 from armstereo.errors import ConfigError
-from armstereo.transforms import invert
+from armstereo.transforms import invert, skew_stack
 
 DEFAULT_PIXEL_SIGMA = 0.3  # px, starting value; estimated from the residuals
 SIGMA_FLOOR_T = 1e-6  # m: pose-error sigmas never go below these (keeps the prior finite)
@@ -368,9 +368,9 @@ def _view_blocks(prob: _Problem, x: np.ndarray):
         minus_I = np.broadcast_to(-np.eye(3), (n, 3, 3))
         blocks = [
             # X -> X exp(e): P_c -> P_c - w x P_c - v
-            (d_uv_dP @ np.concatenate([_skew_rows(P_c), minus_I], 2)).reshape(2 * n, 6) @ M_X,
+            (d_uv_dP @ np.concatenate([skew_stack(P_c), minus_I], 2)).reshape(2 * n, 6) @ M_X,
             # B -> B exp(e): P_c -> P_c + R_cb (w x P_b + v)
-            (d_uv_dP @ np.concatenate([-T_cb[:3, :3] @ _skew_rows(P_b),
+            (d_uv_dP @ np.concatenate([-T_cb[:3, :3] @ skew_stack(P_b),
                                        np.broadcast_to(T_cb[:3, :3], (n, 3, 3))], 2)
              ).reshape(2 * n, 6) @ M_B,
         ]
@@ -385,7 +385,7 @@ def _view_blocks(prob: _Problem, x: np.ndarray):
         cols = shared
         if prob.with_delta:
             # F -> F exp(d) exp(e): P_f -> P_f - w x P_f - v, then P_c = R_X^T (P_f - t_X)
-            dPf = np.concatenate([_skew_rows(P_f), minus_I], 2)
+            dPf = np.concatenate([skew_stack(P_f), minus_I], 2)
             blocks.append((d_uv_dP @ (R_X.T @ dPf)).reshape(2 * n, 6)
                           @ chart_jacobian(delta[i]))
             c = prob.n_shared + 6 * i
@@ -431,15 +431,6 @@ def _jacobian(prob: _Problem, x: np.ndarray) -> np.ndarray:
         prior[idx, c0 + idx] = 1.0 / np.tile(_prior_scale(prob), prob.n_views)
         rows.append(prior)
     return np.concatenate(rows)
-
-
-def _skew_rows(P: np.ndarray) -> np.ndarray:
-    """(n, 3, 3) stack of [p]x for points (n, 3): [p]x w = p x w = -(w x p)."""
-    out = np.zeros((len(P), 3, 3))
-    out[:, 0, 1], out[:, 0, 2] = -P[:, 2], P[:, 1]
-    out[:, 1, 0], out[:, 1, 2] = P[:, 2], -P[:, 0]
-    out[:, 2, 0], out[:, 2, 1] = -P[:, 1], P[:, 0]
-    return out
 
 
 def _update_sigmas(prob: _Problem, x: np.ndarray, estimate_pose: bool) -> _Problem:

@@ -49,3 +49,14 @@ def test_refusals_name_the_transform_and_the_problem(T, what):
 
 def test_tolerances_are_ordered():
     assert 0 < ROTATION_TOLERANCE < SNAP_TOLERANCE <= 1e-3
+
+
+def test_skew_stack_is_the_cross_product():
+    from armstereo.transforms import skew_stack
+
+    rng = np.random.default_rng(3)
+    v, w = rng.normal(size=(5, 3)), rng.normal(size=3)
+    S = skew_stack(v)
+    assert S.shape == (5, 3, 3)
+    assert np.allclose(S @ w, np.cross(v, w))
+    assert np.allclose(S, -np.transpose(S, (0, 2, 1)))
