@@ -23,6 +23,7 @@ from armstereo.calibration.checks import (
     CalibrationInputError,
     usable_views,
 )
+from armstereo.calibration.glare import without_glare
 from armstereo.calibration.handeye import (
     HandEyeEstimate,
     check_diversity,
@@ -36,6 +37,7 @@ from armstereo.calibration.intrinsics import (
 )
 from armstereo.calibration.mount_file import mount_toml
 from armstereo.calibration.poses import as_rigid, exp6, mean_pose, pose_difference
+from armstereo.calibration.prediction import jackknife_covariance, predicted_error
 from armstereo.calibration.refine import PoseErrorPrior, RefineResult, refine_hand_eye
 from armstereo.calibration.report import (
     LeaveOneOut,
@@ -86,12 +88,15 @@ class CalibrationOptions:
     mount file. ``board_shape``: estimate the print's scale error and bow with the rest
     (:mod:`armstereo.calibration.refine`; a real print is neither exactly its spec's size nor
     flat, and either biases the hand-eye and focal length while every residual looks fine).
+    ``screen_glare``: leave out the corners a glare on the board lights up
+    (:mod:`armstereo.calibration.glare`; needs the images, like ``vignetting``).
     """
 
     distortion_model: str = "k1k2"
     refine_intrinsics: bool = True
     pose_error: PoseErrorPrior | None = field(default_factory=PoseErrorPrior)
     board_shape: bool = True
+    screen_glare: bool = True
     vignetting: bool = True
     leave_one_out: bool = True
     working_distance_m: float | None = None
@@ -148,11 +153,24 @@ def calibrate_from_poses(images: Sequence[np.ndarray], T_base_flange: Sequence[n
     if len(sizes) != 1:
         raise ConfigError(f"all views must have one image size, got {sorted(sizes)}")
     detections = [detect_board(img, board) for img in images]
+    glare = {}
+    if options.screen_glare:
+        screened = [without_glare(img, d, board) for img, d in zip(images, detections,
+                                                                   strict=True)]
+        detections = [d for d, _ in screened]
+        glare = {i: g for i, (_, g) in enumerate(screened) if g is not None and g.left_out}
     cal = calibrate_from_detections(detections, T_base_flange, board, sizes.pop(),
                                     intrinsics=intrinsics, options=options)
+    if options.screen_glare:
+        _add_glare(cal.report, glare)
     if options.vignetting:
         cal = _with_vignetting(cal, images, T_base_flange, board)
     return cal
+
+
+def _add_glare(report: dict, glare: dict) -> None:
+    """``views.glare``: per view with corners under a glare, how many were left out."""
+    report["views"]["glare"] = {str(i): g.as_dict() for i, g in glare.items()}
 
 
 def _with_vignetting(cal: Calibration, images: Sequence[np.ndarray],
@@ -245,9 +263,10 @@ def calibrate_from_detections(detections: Sequence[Detection | None],
     warnings += plausibility_warnings(X_final)
     fit_mm = np.array([prediction_mm(d, F, X_final, B_final, refined.intrinsics)
                        for d, F in zip(dets, flanges, strict=True)])
+    pred = None if loo is None else _prediction(refined, chosen, loo)
     if loo is not None:
         warnings += pose_noise_warnings(_rms_of(loo.held_out_mm), _rms_of(fit_mm),
-                                        loo.translation_m, loo.held_out_rms_all_px,
+                                        pred["translation_m"], loo.held_out_rms_all_px,
                                         refined.rms_px)
 
     T_cb_final = [board_pose(d, refined.intrinsics) for d in dets]
@@ -256,14 +275,14 @@ def calibrate_from_detections(detections: Sequence[Detection | None],
     work_d = options.working_distance_m or float(np.median(distances))
     report = _report(board, len(detections), views, detections, intr_fit, intrinsics,
                      refined, closed, diversity, loo, flanges, T_cb_final, work_d, warnings,
-                     options, X_final)
+                     options, X_final, pred)
     add_screening(report, screened)
     if chosen is not None:
         report["quality"]["selection"] = chosen.report
     if loo is not None:
         report["quality"]["held_out_prediction"] = held_out_prediction(loo, fit_mm)
         report["quality"]["predicted_error"]["held_out_prediction_mm"] = _rms_of(loo.held_out_mm)
-    comments = _mount_comments(board, views, refined, loo)
+    comments = _mount_comments(board, views, refined, loo, pred)
     if chosen is not None and chosen.name != REFINED:
         comments.append(f"Hand-eye from the {chosen.name} closed form: it predicts left-out "
                         "views from their arm poses better than the joint refinement.")
@@ -278,7 +297,8 @@ def _report(board: Board, n_recorded: int, views: list[int],
             detections: Sequence[Detection | None], intr_fit, given: Intrinsics | None,
             refined: RefineResult, closed: dict[str, HandEyeEstimate], diversity, loo,
             flanges, T_cb, work_d: float, warnings: list[str],
-            options: CalibrationOptions, X_final: np.ndarray | None = None) -> dict:
+            options: CalibrationOptions, X_final: np.ndarray | None = None,
+            pred: dict | None = None) -> dict:
     X = refined.T_flange_camera if X_final is None else X_final
     intr = refined.intrinsics
     spread_t, spread_r = board_pose_spread(flanges, X, T_cb)
@@ -341,11 +361,8 @@ def _report(board: Board, n_recorded: int, views: list[int],
         report["quality"]["held_out_reprojection_px"] = {
             "rms": loo.held_out_rms_all_px, "per_view": loo.held_out_rms_px.tolist(),
         }
-        report["quality"]["predicted_error"] = {
-            "translation_m": loo.translation_m, "rotation_deg": loo.rotation_deg,
-            "basis": "leave-one-out (jackknife) standard error of the hand-eye",
-        }
-        report["quality"]["effect"] = error_effects(loo.translation_m, loo.rotation_deg,
+        report["quality"]["predicted_error"] = pred
+        report["quality"]["effect"] = error_effects(pred["translation_m"], pred["rotation_deg"],
                                                     work_d, intr)
     return report
 
@@ -378,12 +395,22 @@ def _rms_norm(v: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.sum(v**2, axis=1)))) if len(v) else 0.0
 
 
+def _prediction(refined: RefineResult, chosen, loo: LeaveOneOut) -> dict:
+    """``quality.predicted_error`` (:mod:`armstereo.calibration.prediction`): from the
+    refinement's covariance, or the jackknife's for a closed-form hand-eye."""
+    if chosen is None or chosen.name == REFINED:
+        return predicted_error(refined.covariance_X, "covariance of the joint refinement "
+                               "(corner noise and arm pose error estimated from the data)")
+    return predicted_error(jackknife_covariance(loo.translation_se_m, loo.rotation_se_deg),
+                           f"leave-one-out (jackknife) spread of the {chosen.name} closed form")
+
+
 def _mount_comments(board: Board, views: list[int], refined: RefineResult,
-                    loo: LeaveOneOut | None) -> list[str]:
+                    loo: LeaveOneOut | None, pred: dict | None) -> list[str]:
     lines = [f"Calibrated by armstereo from {len(views)} views of {board.spec}; corner RMS "
              f"{refined.rms_px:.3f} px."]
     if loo is not None:
-        lines.append(f"Predicted hand-eye error (leave-one-out): {loo.translation_m * 1000:.2f} "
-                     f"mm, {loo.rotation_deg:.3f} deg; held-out reprojection "
-                     f"{loo.held_out_rms_all_px:.2f} px.")
+        lines.append(f"Predicted hand-eye error (expected size): "
+                     f"{pred['translation_m'] * 1000:.2f} mm, {pred['rotation_deg']:.3f} deg; "
+                     f"held-out reprojection {loo.held_out_rms_all_px:.2f} px.")
     return lines

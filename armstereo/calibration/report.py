@@ -232,7 +232,7 @@ def report_lines(report: dict) -> list[str]:
     if "predicted_error" in q:
         p, h, e = q["predicted_error"], q["held_out_reprojection_px"], q["effect"]
         lines += [
-            f"predicted error (leave-one-out): {p['translation_m'] * 1000:.2f} mm, "
+            f"predicted error (expected size): {p['translation_m'] * 1000:.2f} mm, "
             f"{p['rotation_deg']:.3f} deg",
             f"held-out views reprojected with {h['rms']:.2f} px (fit {ref['rms_px']:.2f} px)"
             + (f", predicted {q['held_out_prediction']['rms_mm']:.2f} mm off (fit "

@@ -73,7 +73,7 @@ def test_report_has_every_number_and_is_json(ur_like):
     assert r["intrinsics"]["distortion_model"] == "k1k2"
     assert r["warnings"] == []  # a good session raises no false alarm
     lines = report_lines(r)
-    assert any(line.startswith("predicted error (leave-one-out)") for line in lines)
+    assert any(line.startswith("predicted error (expected size)") for line in lines)
     assert any("not accuracy" in line for line in lines)
 
 
