@@ -146,7 +146,8 @@ def _bridged_parts(uv: np.ndarray, cell_m: float, kernel: np.ndarray, radius: in
         return None
     # each part's area before erosion: its core grown back, within the cluster's top view
     grown = [cv2.dilate((comp == c).astype(np.uint8), kernel) & occupied for c in range(1, n)]
-    big = [c for c, g in zip(range(1, n), grown) if g.sum() * cell_m ** 2 >= min_area_m2]
+    big = [c for c, g in zip(range(1, n), grown, strict=True)
+           if g.sum() * cell_m ** 2 >= min_area_m2]
     if len(big) < 2:
         return None
     # nearest core cell of a big part, for every cell: a distance transform with labels
