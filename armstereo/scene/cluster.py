@@ -14,6 +14,7 @@ sparse (sorted integer keys), so far outliers cost nothing.
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
@@ -102,3 +103,61 @@ def _relabel_by_size(labels: np.ndarray, min_points: int) -> np.ndarray:
     new[counts[inverse] < min_points] = NOISE
     out[valid] = new
     return out
+
+
+def split_bridged(uv: np.ndarray, labels: np.ndarray, cell_m: float, neck_m: float,
+                  min_area_m2: float) -> np.ndarray:
+    """Labels (N,) with every cluster that is two objects joined by a narrow bridge split.
+
+    A cluster's top view (``uv`` (N, 2) plane coordinates, m, rasterised in cells of
+    ``cell_m``) is eroded by ``neck_m`` on every side; when two or more parts of at least
+    ``min_area_m2`` (before erosion) survive, each point goes to the part nearest to it. The
+    bridges this cuts are the strips of mismatches stereo leaves between close objects (a gap
+    the matcher filled at object height, the image border's streaks): narrower than
+    ``2 * neck_m``, they link objects in 3-D but vanish in an opening. A cluster that survives
+    the erosion as one part (or not at all: a thin object) is left alone. New clusters get
+    labels after the existing ones; :data:`NOISE` stays."""
+    out = labels.copy()
+    radius = max(1, int(round(neck_m / cell_m)))
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
+    next_label = int(labels.max()) + 1 if len(labels) else 0
+    for k in range(next_label):
+        idx = np.flatnonzero(labels == k)
+        parts = _bridged_parts(uv[idx], cell_m, kernel, radius, min_area_m2)
+        if parts is None:
+            continue
+        for p in range(1, int(parts.max()) + 1):
+            out[idx[parts == p]] = next_label
+            next_label += 1
+    return out
+
+
+def _bridged_parts(uv: np.ndarray, cell_m: float, kernel: np.ndarray, radius: int,
+                   min_area_m2: float) -> np.ndarray | None:
+    """Part index (N,) 0, 1, ... of each point, or None when the cluster is one part."""
+    ij = np.floor((uv - uv.min(axis=0)) / cell_m).astype(np.int64) + radius + 1
+    shape = (int(ij[:, 1].max()) + radius + 2, int(ij[:, 0].max()) + radius + 2)
+    occupied = np.zeros(shape, dtype=np.uint8)
+    occupied[ij[:, 1], ij[:, 0]] = 1
+    occupied = cv2.morphologyEx(occupied, cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8))
+    core = cv2.erode(occupied, kernel)
+    n, comp = cv2.connectedComponents(core, connectivity=8)
+    if n <= 2:
+        return None
+    # each part's area before erosion: its core grown back, within the cluster's top view
+    grown = [cv2.dilate((comp == c).astype(np.uint8), kernel) & occupied for c in range(1, n)]
+    big = [c for c, g in zip(range(1, n), grown, strict=True)
+           if g.sum() * cell_m ** 2 >= min_area_m2]
+    if len(big) < 2:
+        return None
+    # nearest core cell of a big part, for every cell: a distance transform with labels
+    seeds = np.ones(shape, dtype=np.uint8)
+    for c in big:
+        seeds[comp == c] = 0
+    _, nearest = cv2.distanceTransformWithLabels(seeds, cv2.DIST_L2, 5,
+                                                 labelType=cv2.DIST_LABEL_PIXEL)
+    seed_cells = np.flatnonzero(seeds.reshape(-1) == 0)
+    seed_part = np.searchsorted(big, comp.reshape(-1)[seed_cells])
+    # DIST_LABEL_PIXEL numbers the zero pixels 1.. in row-major order
+    cell_part = seed_part[nearest.reshape(-1) - 1].reshape(shape)
+    return cell_part[ij[:, 1], ij[:, 0]]

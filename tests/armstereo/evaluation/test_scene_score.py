@@ -98,3 +98,21 @@ def test_no_scored_object_gives_no_worst_error_rather_than_zero():
 def test_a_document_without_a_plane_is_refused():
     with pytest.raises(ConfigError, match="lacks"):
         score_scene({"objects": []}, _truth())
+
+
+def test_a_missed_object_does_not_take_a_found_one_from_its_own_match():
+    # two true objects, one found 1 mm from the first, one phantom 4 cm from the first and
+    # 15 cm from the second (the realistic desk's case: ball found, notes missed nearby). An
+    # ungated assignment pairs ball-phantom and notes-ball (0.04 + 0.15 < 0.001 + 0.30) and the
+    # gate then drops both pairs; the ball must stay matched.
+    truth = SceneTruth([table(), sphere("ball", 0.0, 0.0, 0.04),
+                        box("notes", 0.0, 0.15, 0.2, 0.14, 0.002)], "table")
+    ball = next(t for t in truth.objects() if t.name == "ball")
+    found = [{"id": 0, "center_m": [0.001, 0.0, 0.04], "size_m": list(ball.size_m),
+              "yaw_deg": 0.0, "height_m": 0.08},
+             {"id": 1, "center_m": [0.0, -0.04, 0.01], "size_m": [0.03, 0.02, 0.01],
+              "yaw_deg": 0.0, "height_m": 0.01}]
+    doc = {"plane": {"normal": [0.0, 0.0, 1.0], "height_m": 0.0}, "objects": found}
+    score = score_scene(doc, truth)
+    assert [m.name for m in score.matched] == ["ball"] and score.matched[0].found_id == 0
+    assert score.missed == ("notes",) and score.phantoms == (1,)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from armstereo.scene.cluster import NOISE, voxel_clusters
+from armstereo.scene.cluster import NOISE, split_bridged, voxel_clusters
 from armstereo.scene.synthetic import default_truth, scan
 
 
@@ -62,3 +62,27 @@ def test_same_partition_as_sklearn_dbscan_on_tabletop_objects():
     assert np.mean(ours == NOISE) < 0.001
     both = (ours != NOISE) & (ref != NOISE)
     assert adjusted_rand_score(ref[both], ours[both]) == pytest.approx(1.0)
+
+
+def _square(x0: float, y0: float, side: float, spacing: float = 0.002) -> np.ndarray:
+    g = np.arange(0.0, side, spacing)
+    u, v = np.meshgrid(x0 + g, y0 + g)
+    return np.column_stack([u.ravel(), v.ravel()])
+
+
+def test_two_objects_joined_by_a_narrow_bridge_are_split():
+    a, b = _square(0.0, 0.0, 0.06), _square(0.1, 0.0, 0.06)
+    bridge = _square(0.06, 0.025, 0.04)
+    bridge = bridge[bridge[:, 1] < 0.035]  # 1 cm wide, 4 cm long
+    uv = np.vstack([a, b, bridge])
+    labels = split_bridged(uv, np.zeros(len(uv), dtype=np.int64), 0.005, 0.01, 0.02 ** 2)
+    assert len(np.unique(labels)) == 2
+    assert len(np.unique(labels[:len(a)])) == 1
+    assert len(np.unique(labels[len(a):len(a) + len(b)])) == 1
+    assert labels[0] != labels[len(a)]
+
+
+def test_one_object_and_noise_labels_are_left_alone():
+    uv = np.vstack([_square(0.0, 0.0, 0.08), _square(0.3, 0.3, 0.01)])
+    labels = np.r_[np.zeros(1600, dtype=np.int64), np.full(len(uv) - 1600, NOISE)]
+    assert np.array_equal(split_bridged(uv, labels, 0.005, 0.01, 0.02 ** 2), labels)
