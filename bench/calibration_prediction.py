@@ -81,8 +81,8 @@ def summary(runs: list[dict]) -> list[str]:
     lines = ["| quantity | median ratio | geometric mean | within 2x (observed) | within 2x "
              "(a correct prediction, expected) | below 1/2 | above 2 | whitened mean (x, y, z) "
              "| whitened variance (x, y, z) |", "|---|---|---|---|---|---|---|---|---|"]
-    for name, key, unit, blk, vec in (("translation", "translation_m", 1.0, slice(3, 6), "e_t"),
-                                      ("rotation", "rotation_deg", 1.0, slice(0, 3), "e_r")):
+    for name, key, _unit, blk, vec in (("translation", "translation_m", 1.0, slice(3, 6), "e_t"),
+                                       ("rotation", "rotation_deg", 1.0, slice(0, 3), "e_r")):
         ratio = np.array([r["truth"][key] / r["pred"][key] for r in runs])
         scale = 1.0 if name == "translation" else np.pi / 180.0
         expected = [in_band_probability(r["cov"][blk, blk], r["pred"][key] * scale)
@@ -106,7 +106,8 @@ def targets(runs: list[dict]) -> list[str]:
     v = np.array([abs(r["truth"].get("vignetting_corner_rel", np.nan)) for r in runs])
     return [f"Targets (issue 24) met on: hand-eye translation <= 0.3 mm "
             f"{int(np.sum(t <= TARGET_T_M))} / {len(runs)} (RMS {np.sqrt(np.mean(t**2)) * 1e3:.3f}"
-            f" mm, max {t.max() * 1e3:.3f}), rotation <= 0.05 deg {int(np.sum(rot <= TARGET_R_DEG))}"
+            f" mm, max {t.max() * 1e3:.3f}), rotation <= 0.05 deg "
+            f"{int(np.sum(rot <= TARGET_R_DEG))}"
             f" / {len(runs)} (max {rot.max():.4f}), focal within 0.1 % "
             f"{int(np.sum(f <= TARGET_FOCAL))} / {len(runs)} (max {f.max() * 100:.4f} %), "
             f"vignetting within 2 % {int(np.sum(v <= TARGET_VIG))} / {len(runs)} "

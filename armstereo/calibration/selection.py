@@ -9,8 +9,9 @@ relative motions directly, can predict a view from its arm pose better.
 
 This matters only when the arm's poses, not the images, limit the result: the refinement's
 left-out views must be predicted more than POSE_LIMITED_FACTOR times worse than its own fit,
-and more than POSE_LIMITED_MM off. Otherwise (a good arm, or calibrated kinematics) the refinement is kept: its held-out
-pixels are then mostly corner noise and cannot tell a hand-eye 0.3 mm off from one 1 mm off
+and more than POSE_LIMITED_MM off. Otherwise (a good arm, or calibrated kinematics) the
+refinement is kept: its held-out pixels are then mostly corner noise and cannot tell a
+hand-eye 0.3 mm off from one 1 mm off
 (simulations), while its truth error is a third of the closed forms'. The millimetre gate
 matters once the corners are clean: on the realistic mock cell (an arm good to a tenth of a
 millimetre) the held-out views are 0.1 mm off and their pixels three times the fit's, and a

@@ -15,6 +15,7 @@ import cv2
 import numpy as np
 
 from armstereo.reconstruct.birchfield.refine import row_rejects
+from armstereo.reconstruct.plain import fill_plain
 from armstereo.reconstruct.stereo_inputs import TEXTURE_WINDOW
 from armstereo.reconstruct.strips import each_strip, row_strips
 from armstereo.reconstruct.subpixel import SUBPIXEL_WINDOW, gradient_step
@@ -27,18 +28,27 @@ PHOTO_EDGE_REACH = 16  # pixels along the row: how far from a depth jump fatteni
 PHOTO_EDGE_JUMP = 2.0  # pixels of disparity: a jump a foreground can be carried across
 
 
-def masked_map(pool, strips, gl, gr, idx, dmin, *, fast, median, flat, columns, hidden):
+def masked_map(pool, strips, gl, gr, idx, dmin, *, fast, median, flat, columns, hidden,
+               plain=None):
     """The map in window units with every rejection before the left-right check: sub-pixel
     step, median, NaN on unmatched pixels, on flat pixels their surroundings do not confirm
     (:func:`unsupported`) and on pixels a nearer one hides (:func:`hidden_by_nearer`, with
-    the margin ``hidden``; None = not tested). ``gl``/``gr``: the images the sub-pixel step
-    fits. Returns ``(masked, reject)``: float32 (NaN where rejected) and the bool rejections."""
+    the margin ``hidden``; None = not tested), then the plain runs filled from their textured
+    ends (:func:`.plain.fill_plain`, ``plain`` = its support; None = not filled). ``gl``/``gr``:
+    the images the sub-pixel step fits. Returns ``(masked, reject)``: float32 (NaN where
+    rejected) and the bool rejections."""
     masked = np.empty(idx.shape, np.float32)
     reject = np.empty(idx.shape, np.bool_)
     each_strip(pool, strips, _first_pass, gl, gr, idx, dmin, fast, median, masked, reject)
+    fill = plain is not None and flat is not None
+    before = masked.copy() if fill else None
     if flat is not None or hidden is not None:
         _flat_and_hidden(masked, reject, flat, FLAT_TOLERANCE, columns, hidden, apply=True,
                          pool=pool, strips=strips)
+    if fill:
+        fill_plain(masked, before, flat, tolerance=FLAT_TOLERANCE, slope=FLAT_SLOPE,
+                   support=plain, pool=pool, strips=strips)
+        np.logical_and(reject, np.isnan(masked), out=reject)  # filled: no longer rejected
     return masked, reject
 
 

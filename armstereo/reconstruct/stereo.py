@@ -32,6 +32,7 @@ too: docs/birchfield-tomasi.md ("Defaults and why") says what each changes and w
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from typing import Any
 
@@ -47,6 +48,7 @@ from armstereo.reconstruct.birchfield.paper.matcher import DP_EXACT, DP_PRUNED, 
 from armstereo.reconstruct.birchfield.refine import left_right_mismatch
 from armstereo.reconstruct.birchfield.window.aggregate import match_image_aggregated
 from armstereo.reconstruct.consensus import replace_outliers
+from armstereo.reconstruct.equalize import equalize
 from armstereo.reconstruct.rejection import (
     add_rejections,
     clip_to_window,
@@ -57,6 +59,7 @@ from armstereo.reconstruct.rejection import (
 from armstereo.reconstruct.sgbm import sgbm
 from armstereo.reconstruct.speckles import remove_speckles
 from armstereo.reconstruct.stereo_inputs import (
+    grey,
     highpass,
     match_inputs,
     prepare,
@@ -103,6 +106,12 @@ __all__ = [
 ]
 
 log = logging.getLogger(__name__)
+
+# the first pass of the brightness equalisation: a cost that ignores brightness (the locally
+# normalised images), every answer kept (the fit trims its own outliers), no second pass
+EQUALIZE_FIRST_PASS = BirchfieldOptions(equalize=False, normalize_window=7,
+                                        texture_threshold=0.0, reward_texture=0.0,
+                                        plain_fill=None, subpixel="none", consensus_size=0)
 
 # column_smoothing: the smoothed costs weigh as much as this many single-pixel costs when
 # the penalties are scaled (2 and 4 measured: bench/results/stereo_consistency.md)
@@ -163,23 +172,30 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int,
     # side where it can (the speckle filter on strips of its own)
     strips = row_strips(left.shape[0], n_threads)
     with thread_pool(n_threads) as pool:
-        # the photo-consistency check and the sub-pixel steps read the unfiltered grey images
-        grey_l, grey_r, gl, gr, flat, textured_l = match_inputs(
-            pool, strips, left, right,
-            edge_cap=o.edge_cap if o.prefilter == "edges" and o.color == "gray" else None,
-            flat_below=o.texture_threshold, reward_from=o.reward_texture)
+        # the photo-consistency check reads the grey images, the sub-pixel steps the
+        # normalised ones (the views' brightness may differ) without the edges
+        gray = o.color == "gray"
+        if o.equalize and gray:
+            left, right = _equalized(left, right, lmask, rmask, o, min_disparity,
+                                     max_disparity)
+        inputs = match_inputs(
+            pool, strips, left, right, (lmask, rmask),
+            edge_cap=o.edge_cap if o.prefilter == "edges" and gray else None,
+            normalized=o.normalization, flat_below=o.texture_threshold,
+            reward_from=o.reward_texture)
+        (grey_l, grey_r), (gl, gr), textured_l = inputs.grey, inputs.matched, inputs.textured
         if o.prefilter == "highpass":
-            gl = highpass(grey_l, lmask, o.prefilter_sigma, o.prefilter_gain)
-            gr = highpass(grey_r, rmask, o.prefilter_sigma, o.prefilter_gain)
+            gl = highpass(inputs.base[0], lmask, o.prefilter_sigma, o.prefilter_gain)
+            gr = highpass(inputs.base[1], rmask, o.prefilter_sigma, o.prefilter_gain)
         # the sub-pixel steps fit intensities: the edge image's clipping and saturation are not
         # a shifted copy of the other view's, and its Sobel sees the image border
-        sub = (grey_l, grey_r) if o.prefilter == "edges" else (gl, gr)
+        sub = inputs.base if o.prefilter == "edges" else (gl, gr)
         matched = ((gl[:, :, None], gr[:, :, None]) if o.color == "gray" else (left, right))
         idx, _ = _match(*matched, lmask, rmask, textured=textured_l, pool=pool, **params)
         masked, reject = masked_map(
             pool, strips, *sub, idx, min_disparity, fast=o.subpixel == "fast",
-            median=o.postprocess == "median", flat=flat, columns=o.column_support,
-            hidden=o.occlusion_margin if o.occlusions == "nan" else None)
+            median=o.postprocess == "median", flat=inputs.flat, columns=o.column_support,
+            hidden=o.occlusion_margin if o.occlusions == "nan" else None, plain=o.plain_fill)
         if o.lr_check:
             _reject_right_to_left(masked, reject, idx, matched, (lmask, rmask), grey_r, o,
                                   min_disparity, pool, params)
@@ -188,6 +204,21 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int,
         disp = _finish(disp, (grey_l, grey_r), sub, rmask, o, min_disparity, max_disparity,
                        pool, strips)
     return disp
+
+
+def _equalized(left, right, lmask, rmask, o: BirchfieldOptions, dmin: int,
+               max_disparity: int) -> tuple[np.ndarray, np.ndarray]:
+    """The grey pair, (H, W, 1) uint8, with the right view's brightness made the left's
+    (:func:`.equalize.equalize`); its first pass is this matcher with the brightness-blind
+    cost of :data:`EQUALIZE_FIRST_PASS`."""
+    grey_l, grey_r = grey(left), grey(right)
+    first = dataclasses.replace(EQUALIZE_FIRST_PASS, threads=o.threads)
+
+    def first_pass(l_img, r_img, n, **kw):
+        return birchfield(l_img, r_img, n, first, **kw)
+
+    grey_r = equalize(grey_l, grey_r, lmask, rmask, dmin, max_disparity, first_pass)
+    return grey_l[:, :, None], grey_r[:, :, None]
 
 
 def _kernel_params(o: BirchfieldOptions, left: np.ndarray, dmin: int, max_disparity: int,

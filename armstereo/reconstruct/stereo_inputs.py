@@ -4,16 +4,20 @@
 (H, W) or BGR (H, W, 3), the disparity window inside the image). :func:`match_inputs` makes,
 on strips of rows side by side (:mod:`.strips`), the grey images, the images the programme
 matches (:func:`with_edges`, the default prefilter) and the left image's texture maps
-(:func:`texture_strength`: which pixels are flat, which earn the match reward).
-:func:`highpass` is the other prefilter, on whole images.
+(:func:`texture_strength`: which pixels are flat, which earn the match reward), after the
+local normalisation (:mod:`.normalize`) when it is on. :func:`highpass` is the other prefilter,
+on whole images.
 """
 
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import cv2
 import numpy as np
 
 from armstereo.errors import StereoError
+from armstereo.reconstruct.normalize import normalize
 from armstereo.reconstruct.strips import each_strip
 
 TEXTURE_WINDOW = 5  # pixels: side of the texture map's box filter
@@ -81,44 +85,69 @@ def grey(img: np.ndarray) -> np.ndarray:
     return cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
 
 
-def match_inputs(pool, strips: list[tuple[int, int]], left: np.ndarray, right: np.ndarray, *,
-                 edge_cap: float | None, flat_below: float, reward_from: float) -> tuple:
-    """What the programme and the checks start from, on ``strips`` of rows side by side:
-    ``(grey_l, grey_r, matched_l, matched_r, flat, textured)``, the (H, W) uint8 grey images,
-    the images the programme matches (the edge images, :func:`with_edges`, when
-    ``edge_cap`` is given; else the grey ones), the left image's flat pixels (texture
-    strength below ``flat_below``; None if 0) and those that earn the match reward (strength
-    at least ``reward_from``, :func:`rewarded`; None if 0)."""
+class MatchInputs(NamedTuple):
+    """What :func:`match_inputs` makes, each a (H, W) array: ``grey`` the (left, right) grey
+    images; ``base`` what the programme's prefilter and the sub-pixel steps start from (the
+    locally normalised grey images, :mod:`.normalize`, or the grey ones when that is off);
+    ``matched`` the images the programme matches (``base`` with edges, :func:`with_edges`,
+    or ``base`` itself); ``flat``/``textured`` the left image's texture maps (None if off)."""
+
+    grey: tuple[np.ndarray, np.ndarray]
+    base: tuple[np.ndarray, np.ndarray]
+    matched: tuple[np.ndarray, np.ndarray]
+    flat: np.ndarray | None
+    textured: np.ndarray | None
+
+
+def match_inputs(pool, strips: list[tuple[int, int]], left: np.ndarray, right: np.ndarray,
+                 masks: tuple[np.ndarray, np.ndarray], *, edge_cap: float | None,
+                 normalized: tuple[int, float, float] | None, flat_below: float,
+                 reward_from: float) -> MatchInputs:
+    """What the programme and the checks start from (:class:`MatchInputs`), on ``strips`` of
+    rows side by side: ``normalized`` = ``(window, floor, scale)`` of the local normalisation
+    (:func:`.normalize.normalize`, over the valid pixels of ``masks``; None = off), the edge
+    images when ``edge_cap`` is given, the left image's flat pixels (texture strength of the
+    grey image below ``flat_below``; None if 0) and those that earn the match reward
+    (strength at least ``reward_from``, :func:`rewarded`; None if 0)."""
     H, W = left.shape[:2]
     grey2 = np.empty((2, H, W), np.uint8)
-    matched = grey2 if edge_cap is None else np.empty((2, H, W), np.uint8)
+    base = grey2 if normalized is None else np.empty((2, H, W), np.uint8)
+    matched = base if edge_cap is None else np.empty((2, H, W), np.uint8)
     flat = np.empty((H, W), np.bool_) if flat_below > 0 else None
     textured = np.empty((H, W), np.bool_) if reward_from > 0 else None
-    each_strip(pool, strips, _input_rows, left, right, edge_cap, flat_below, reward_from,
-               grey2, matched, flat, textured)
-    return grey2[0], grey2[1], matched[0], matched[1], flat, textured
+    halo = INPUT_HALO if normalized is None else max(INPUT_HALO, normalized[0] // 2 + 1)
+    each_strip(pool, strips, _input_rows, left, right, masks, halo, edge_cap, normalized,
+               flat_below, reward_from, grey2, base, matched, flat, textured)
+    return MatchInputs((grey2[0], grey2[1]), (base[0], base[1]), (matched[0], matched[1]),
+                       flat, textured)
 
 
-def _input_rows(first: int, stop: int, left: np.ndarray, right: np.ndarray,
-                edge_cap: float | None, flat_below: float, reward_from: float,
-                grey2: np.ndarray, matched: np.ndarray, flat: np.ndarray | None,
+def _input_rows(first: int, stop: int, left: np.ndarray, right: np.ndarray, masks, halo: int,
+                edge_cap: float | None, normalized: tuple[int, float, float] | None,
+                flat_below: float, reward_from: float, grey2: np.ndarray, base: np.ndarray,
+                matched: np.ndarray, flat: np.ndarray | None,
                 textured: np.ndarray | None) -> None:
-    """Rows ``first .. stop - 1`` of :func:`match_inputs`, filtered from INPUT_HALO rows more
-    on each side (the filters' own border only touches rows that are dropped)."""
-    a, b = max(0, first - INPUT_HALO), min(left.shape[0], stop + INPUT_HALO)
+    """Rows ``first .. stop - 1`` of :func:`match_inputs`, filtered from ``halo`` rows more on
+    each side (the filters' own border only touches rows that are dropped)."""
+    a, b = max(0, first - halo), min(left.shape[0], stop + halo)
     rows, keep = slice(first, stop), slice(first - a, stop - a)
     for i, img in enumerate((left, right)):
         g = grey(img[a:b])
         grey2[i, rows] = g[keep]
-        if edge_cap is not None:
-            matched[i, rows] = with_edges(g, edge_cap)[keep]
         if i == 0 and (flat is not None or textured is not None):
-            # one texture map of the left image serves both thresholds
+            # one texture map of the left image serves both thresholds; it reads the grey
+            # image, whose contrast says how much the programme's answer there is worth (the
+            # normalised image has about the same contrast everywhere)
             strength = texture_strength(g)[keep]
             if flat is not None:
                 np.less(strength, flat_below, out=flat[rows])
             if textured is not None:
                 textured[rows] = rewarded(strength, reward_from)  # the rule in one place
+        if normalized is not None:
+            g = normalize(g, masks[i][a:b], *normalized)
+            base[i, rows] = g[keep]
+        if edge_cap is not None:
+            matched[i, rows] = with_edges(g, edge_cap)[keep]
 
 
 def texture_strength(grey_image: np.ndarray) -> np.ndarray:

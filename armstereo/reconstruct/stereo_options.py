@@ -46,6 +46,12 @@ PREFILTER = "edges"
 EDGE_CAP = 12.0
 PREFILTER_SIGMA = 8.0  # px: slower brightness changes than this are removed
 PREFILTER_GAIN = 2.0  # contrast of what is left (the penalties are in grey levels)
+# local normalisation (bench/results/radiometric.md): window side (px), noise floor and
+# contrast of the result (grey levels)
+NORMALIZE_WINDOW = 0  # off: equalize instead (7 is the equalisation's first pass)
+NORMALIZE_FLOOR = 4.0
+NORMALIZE_SCALE = 24.0
+PLAIN_FILL = 0.5  # share of a plain run the programme must support to be filled
 SPECKLE_SIZE = 100  # pixels
 SPECKLE_RANGE = 2.0  # pixels of disparity
 CONSENSUS_SIZE = 9  # pixels: side of the consensus median's square
@@ -60,7 +66,8 @@ CLEAN_PHOTO_CHECK = 4.0
 PAPER_OPTIONS = dict(cost_window=(1, 1), slant_penalty=None, postprocess="paper",
                      texture_threshold=0.0, reward_texture=0.0, speckle_size=0,
                      subpixel="none", occlusions="fill", column_support=False,
-                     consensus_size=0, prefilter="none", match_reward=5)
+                     consensus_size=0, prefilter="none", match_reward=5,
+                     normalize_window=0, equalize=False, plain_fill=None)
 
 
 def _grey_levels(text: str) -> float:
@@ -98,6 +105,11 @@ class BirchfieldOptions:
       only if the nearest textured pixels left and right of it on the row agree with it
       (:func:`.rejection.unsupported`), else NaN: no invented depth on backgrounds and gaps.
       0 = off.
+    - ``plain_fill``: a run of flat pixels (along a row, then a column) whose textured ends
+      agree gets the straight line between them where it has no answer, when at least this
+      share of the run's answers supported that surface (:mod:`.plain`): a plain table top
+      between textured objects gets the table's surface; a background that the programme
+      saw elsewhere stays empty. Needs ``texture_threshold`` > 0. None = off.
     - ``reward_texture``: matching a left pixel flatter than this earns no ``match_reward``,
       so the programme gains nothing by matching featureless pixels. 0 = reward everywhere.
     - ``column_support``: a flat pixel its row does not confirm is still kept when the
@@ -147,6 +159,22 @@ class BirchfieldOptions:
       exposure) does not shift matches; ``"none"`` matches the intensities as the paper does.
       Grey matching only: ``"edges"`` does not apply to ``color="sum"``/``"max"``,
       ``"highpass"`` is refused there.
+    - ``equalize``: before matching, the right grey image is given the left one's
+      brightness: a quick brightness-blind first pass at half size finds matching pixels,
+      and a gamma and a smooth gain field fitted to them are removed from the right image
+      (:mod:`.equalize`): a gain, gamma, vignetting or lighting difference between the views
+      (a real arm takes them at different times from different places) no longer shifts or
+      loses matches, while the intensities, shading included, are still what is compared.
+      Grey matching only (colour costs compare the colour images as they are). False = the
+      paper's plain intensities.
+    - ``normalize_window``: before the prefilter, each grey image becomes ``128 +
+      normalize_scale * (I - mean) / (std + normalize_floor)`` over this odd square of valid
+      pixels (:mod:`.normalize`), so the programme and the sub-pixel steps compare local
+      structure, not brightness, even where the light changes within a few pixels; it also
+      removes the shading that guides the programme on plain smooth surfaces, so it costs
+      accuracy where ``equalize`` suffices (bench/results/radiometric.md). The texture maps
+      and the photo-consistency check read the grey images. 0 = off (default). Grey
+      matching only.
     - ``photo_check``: NaN where the final match does not look alike: the grey difference
       ``|L(x) - R(x - d(x))|`` (right image interpolated, each pixel at its own disparity, so
       a window at a depth edge compares each surface with itself) averaged over the 3x3
@@ -193,10 +221,15 @@ class BirchfieldOptions:
     prefilter_sigma: float = PREFILTER_SIGMA
     prefilter_gain: float = PREFILTER_GAIN
     edge_cap: float = EDGE_CAP
+    equalize: bool = True
+    normalize_window: int = NORMALIZE_WINDOW
+    normalize_floor: float = NORMALIZE_FLOOR
+    normalize_scale: float = NORMALIZE_SCALE
     occlusion_margin: float = OCCLUSION_MARGIN
     photo_check: float = field(default=0.0, metadata=option(
         "--photo-check", _PHOTO_CHECK_HELP, type=_grey_levels, metavar="G"))
     column_support: bool = True
+    plain_fill: float | None = PLAIN_FILL
     consensus_size: int = CONSENSUS_SIZE
     column_smoothing: tuple[float, float] | None = None
 
@@ -238,6 +271,8 @@ class BirchfieldOptions:
         if not self.occlusion_margin >= 0:
             raise StereoError(f"occlusion_margin must be >= 0 pixels, got "
                               f"{self.occlusion_margin}")
+        if self.plain_fill is not None and not 0 <= self.plain_fill <= 1:
+            raise StereoError(f"plain_fill must be a share 0..1 or None, got {self.plain_fill}")
         if not self.photo_check >= 0:
             raise StereoError(f"photo_check must be >= 0 grey levels, got {self.photo_check}")
 
@@ -254,11 +289,25 @@ class BirchfieldOptions:
                                   f"prefilter_gain ({self.prefilter_gain}) must be > 0")
         if self.prefilter == "edges" and not self.edge_cap > 0:
             raise StereoError(f"edge_cap must be > 0 grey levels, got {self.edge_cap}")
+        w = self.normalize_window
+        if isinstance(w, bool) or not isinstance(w, int | np.integer) or (
+                w != 0 and (w < 3 or w % 2 == 0)):
+            raise StereoError(f"normalize_window must be 0 (off) or odd and >= 3, got {w!r}")
+        if w and not (self.normalize_floor > 0 and self.normalize_scale > 0):
+            raise StereoError(f"normalize_floor ({self.normalize_floor}) and normalize_scale "
+                              f"({self.normalize_scale}) must be > 0 grey levels")
 
     @classmethod
     def paper(cls, **changes: Any) -> BirchfieldOptions:
         """The paper's matcher as published (:data:`PAPER_OPTIONS`), with ``changes``."""
         return cls(**{**PAPER_OPTIONS, **changes})
+
+    @property
+    def normalization(self) -> tuple[int, float, float] | None:
+        """``(window, floor, scale)`` of the local normalisation, None when it is off."""
+        if not self.normalize_window:
+            return None
+        return self.normalize_window, self.normalize_floor, self.normalize_scale
 
     @property
     def single_pixel(self) -> bool:

@@ -79,16 +79,22 @@ def cones():
 
 def test_edges_sharpen_the_depth_edges_of_cones():
     """Matching the intensities plus their clipped horizontal gradient moves the programme's
-    depth jumps onto the objects' outlines: Cones bad-2 7.6 % -> 4.7 % (stereo_accuracy.md)."""
+    depth jumps onto the objects' outlines: Cones bad-2 6.7 % -> 4.5 % on the raw views
+    (stereo_accuracy.md). Cones' views differ a little in brightness, which the gradient
+    also ignores: once the brightness is equalised, the edges still gain (4.5 % -> 4.0 %,
+    bench/results/radiometric.md)."""
     left, right, gt, mask, n = cones()
 
-    def bad2(prefilter):
-        disp = birchfield(left, right, n, prefilter=prefilter)
+    def bad2(prefilter, **options):
+        disp = birchfield(left, right, n, prefilter=prefilter, **options)
         return evaluate_disparity(disp, gt, mask, exclude_left=n)["bad2"]
 
+    plain, edges = bad2("none", equalize=False), bad2("edges", equalize=False)
+    assert edges < 0.047
+    assert plain - edges > 0.015
     plain, edges = bad2("none"), bad2("edges")
-    assert edges < 0.055
-    assert plain - edges > 0.02
+    assert edges < 0.042
+    assert plain - edges > 0.003
 
 
 def row_with_a_nearer_box():

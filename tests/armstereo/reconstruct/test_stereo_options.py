@@ -40,6 +40,10 @@ def shifted_pair(d0, *, shape, seed):
     (dict(column_smoothing=(1, 4), search="pruned"), 'column_smoothing needs color="gray"'),
     (dict(prefilter="highpass", prefilter_sigma=0), "prefilter_sigma"),
     (dict(prefilter="highpass", color="max"), "grey matching only"),
+    (dict(normalize_window=4), "normalize_window must be 0"),
+    (dict(normalize_window=True), "normalize_window must be 0"),
+    (dict(normalize_window=7, normalize_floor=0), "normalize_floor"),
+    (dict(plain_fill=1.5), "plain_fill must be a share"),
 ])
 def test_a_bad_option_is_refused_when_the_options_are_made(kwargs, message):
     with pytest.raises(StereoError, match=message):
@@ -64,6 +68,9 @@ def test_the_papers_method_is_the_published_options():
                                     if getattr(BirchfieldOptions(), k) != v}
     assert BirchfieldOptions.paper(lr_check=True).lr_check
     assert paper.single_pixel is False and BirchfieldOptions(color="sum").single_pixel
+    # the paper compares the intensities as they are, with nothing filled in
+    assert (paper.equalize, paper.normalization, paper.plain_fill) == (False, None, None)
+    assert BirchfieldOptions(normalize_window=7).normalization == (7, 4.0, 24.0)
 
 
 def test_the_record_holds_every_option_and_reads_back():
