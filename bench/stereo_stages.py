@@ -106,6 +106,11 @@ STAGES = [
     ("rejection", "reject_invalid_partners", "invalid partners"),
     ("rejection", "masked_map", "rest of birchfield()"),
     ("rejection", "_first_pass", "rest of birchfield()"),
+    # the brightness equalisation and the plain fill (issue 26); the equalisation's first
+    # pass is a nested birchfield() call, timed inside "brightness equalisation"
+    ("equalize", "equalize", "brightness equalisation"),
+    ("normalize", "normalize", "local normalisation"),
+    ("plain", "fill_plain", "plain fill"),
 ]
 DP = "DP kernels"
 SUBPIXEL = "sub-pixel: fast"
@@ -172,7 +177,8 @@ def worker(repeats: int, options: dict, only: list[str] | None, masked: bool) ->
     timer = StageTimer()
     modules = {"stereo": stereo, "aggregate": aggregate}
     # split out of stereo.py: older trees lack them
-    for part in ("consensus", "speckles", "stereo_inputs", "rejection", "subpixel"):
+    for part in ("consensus", "speckles", "stereo_inputs", "rejection", "subpixel", "equalize",
+                 "normalize", "plain"):
         if importlib.util.find_spec(f"armstereo.reconstruct.{part}") is not None:
             modules[part] = importlib.import_module(f"armstereo.reconstruct.{part}")
     present = []

@@ -32,7 +32,6 @@ too: docs/birchfield-tomasi.md ("Defaults and why") says what each changes and w
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 from typing import Any
 
@@ -49,6 +48,7 @@ from armstereo.reconstruct.birchfield.refine import left_right_mismatch
 from armstereo.reconstruct.birchfield.window.aggregate import match_image_aggregated
 from armstereo.reconstruct.consensus import replace_outliers
 from armstereo.reconstruct.equalize import equalize
+from armstereo.reconstruct.normalize import normalize
 from armstereo.reconstruct.rejection import (
     add_rejections,
     clip_to_window,
@@ -65,6 +65,7 @@ from armstereo.reconstruct.stereo_inputs import (
     prepare,
     rewarded,
     texture_strength,
+    with_edges,
 )
 from armstereo.reconstruct.stereo_options import (
     CLEAN_PHOTO_CHECK,
@@ -107,11 +108,10 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-# the first pass of the brightness equalisation: a cost that ignores brightness (the locally
-# normalised images), every answer kept (the fit trims its own outliers), no second pass
+# the first pass of the brightness equalisation: the programme on a cost that ignores
+# brightness (the locally normalised images), without the texture rules
 EQUALIZE_FIRST_PASS = BirchfieldOptions(equalize=False, normalize_window=7,
-                                        texture_threshold=0.0, reward_texture=0.0,
-                                        plain_fill=None, subpixel="none", consensus_size=0)
+                                        texture_threshold=0.0, reward_texture=0.0)
 
 # column_smoothing: the smoothed costs weigh as much as this many single-pixel costs when
 # the penalties are scaled (2 and 4 measured: bench/results/stereo_consistency.md)
@@ -177,7 +177,7 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int,
         gray = o.color == "gray"
         if o.equalize and gray:
             left, right = _equalized(left, right, lmask, rmask, o, min_disparity,
-                                     max_disparity)
+                                     max_disparity, pool)
         inputs = match_inputs(
             pool, strips, left, right, (lmask, rmask),
             edge_cap=o.edge_cap if o.prefilter == "edges" and gray else None,
@@ -207,18 +207,34 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int,
 
 
 def _equalized(left, right, lmask, rmask, o: BirchfieldOptions, dmin: int,
-               max_disparity: int) -> tuple[np.ndarray, np.ndarray]:
+               max_disparity: int, pool) -> tuple[np.ndarray, np.ndarray]:
     """The grey pair, (H, W, 1) uint8, with the right view's brightness made the left's
-    (:func:`.equalize.equalize`); its first pass is this matcher with the brightness-blind
-    cost of :data:`EQUALIZE_FIRST_PASS`."""
+    (:func:`.equalize.equalize`, its first pass :func:`_brightness_blind`)."""
     grey_l, grey_r = grey(left), grey(right)
-    first = dataclasses.replace(EQUALIZE_FIRST_PASS, threads=o.threads)
+    threads = o.threads or numba.get_num_threads()
 
-    def first_pass(l_img, r_img, n, **kw):
-        return birchfield(l_img, r_img, n, first, **kw)
+    def first_pass(l_img, r_img, n, *, min_disparity, left_mask, right_mask):
+        return _brightness_blind(l_img, r_img, n, min_disparity, left_mask, right_mask,
+                                 threads, pool)
 
     grey_r = equalize(grey_l, grey_r, lmask, rmask, dmin, max_disparity, first_pass)
     return grey_l[:, :, None], grey_r[:, :, None]
+
+
+def _brightness_blind(grey_l, grey_r, max_disparity, dmin, lmask, rmask, threads, pool
+                      ) -> np.ndarray:
+    """The equalisation's first pass: the programme of :data:`EQUALIZE_FIRST_PASS` on the
+    locally normalised grey images with edges, nothing after it (the fit trims its own
+    outliers). (H, W) float32 disparities, NaN = no match."""
+    o = EQUALIZE_FIRST_PASS
+    images = [with_edges(normalize(g, m, *o.normalization), o.edge_cap)[:, :, None]
+              for g, m in ((grey_l, lmask), (grey_r, rmask))]
+    params = _kernel_params(o, images[0], dmin, max_disparity, threads)
+    idx, _ = _match(*images, lmask, rmask, pool=pool, **params)
+    disp = idx.astype(np.float32)
+    disp += np.float32(dmin)
+    disp[idx < 0] = np.nan
+    return disp
 
 
 def _kernel_params(o: BirchfieldOptions, left: np.ndarray, dmin: int, max_disparity: int,
