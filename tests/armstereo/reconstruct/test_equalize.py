@@ -100,3 +100,13 @@ def test_cones_survives_a_brightness_change_of_the_right_view(change):
     assert unchanged < 0.045
     assert equalized < 1.3 * unchanged
     assert bad2(changed, equalize=False) > equalized + 0.01
+
+
+def test_the_equalised_map_does_not_depend_on_the_thread_count():
+    left, right, _, _, n = cones()
+    changed = CHANGES["gain x1.25"](right)
+    one = birchfield(left, changed, n, threads=1)
+    two = birchfield(left, changed, n, threads=2)
+    np.testing.assert_array_equal(one, two)
+    assert not np.array_equal(one, birchfield(left, changed, n, threads=1, equalize=False),
+                              equal_nan=True)
