@@ -154,6 +154,16 @@ def test_the_mesh_weight_rule_follows_the_depth_filter():
     assert FusionOptions(min_weight=0.5).mesh_min_weight == 0.5
 
 
+def test_the_depth_filter_is_on_for_birchfield_and_off_for_sgbm_by_default():
+    # SGBM hides its weak-texture errors in smooth plateaus that the residual weights trust
+    # (bench/results/cell_scan.md: its fused scan got worse with the filter)
+    assert FusionOptions().filter_options == DepthFilterOptions()
+    assert not FusionOptions(method="sgbm").filter_options.enabled
+    assert FusionOptions(method="sgbm").mesh_min_weight == 1.0
+    given = DepthFilterOptions(window=11)
+    assert FusionOptions(method="sgbm", depth_filter=given).filter_options is given
+
+
 def test_the_matcher_comes_from_the_options_object_or_the_method():
     assert FusionOptions().method == "birchfield" and FusionOptions().matcher == BirchfieldOptions()
     assert FusionOptions(stereo=SgbmOptions()).method == "sgbm"
