@@ -8,7 +8,9 @@ file (the scan a user who skipped the calibration fuses). Scores against the sce
 the mesh's mean distance to the true surfaces (accuracy), the share of the true surface within
 5 mm of the mesh (completeness), and the raw pairs' accuracy beside the fused one. Also one
 row of the same cell with every error source off but the desk (the matcher and the fusion
-alone, the camera's true mount).
+alone, the camera's true mount), and the depth filter's effect
+(:mod:`armstereo.fusion.depth_filter`, on by default for Birchfield-Tomasi, off for SGBM):
+Birchfield-Tomasi without it (as fusion ran before it), SGBM with it.
 
     .venv/bin/python -m bench.cell_scan [--seeds 0 1 2 3 4] [--views ring:12]
         [--out bench/results/cell_scan.md]
@@ -29,6 +31,7 @@ from armstereo.apps.calibrate import MockCalibration, calibrate_mock_cell
 from armstereo.apps.demo import DEMO_CALIBRATION_VIEWS, DEMO_CORNER_VIEWS
 from armstereo.apps.scan import ScanRequest, backend_metadata, record_scan
 from armstereo.apps.scan_demo import TARGET_M, ScanDemoOptions
+from armstereo.fusion.depth_filter import DepthFilterOptions
 from armstereo.fusion.run import FusionOptions, fuse_recording
 from armstereo.mount import CameraMount
 from armstereo.robot.model_file import load_arm_model
@@ -48,7 +51,10 @@ NOTHING_BUT_THE_DESK = dataclasses.replace(
     REALISTIC, image=ImageEffects(), joints=JointErrors(), residual=ArmResidual(),
     board=BoardErrors(), hand_eye=HandEyeErrors(), intrinsics=IntrinsicsErrors())
 ROWS = ("birchfield, calibrated", "sgbm, calibrated", "birchfield, bundled mount",
-        "birchfield, nothing but the desk (true camera)")
+        "birchfield, nothing but the desk (true camera)",
+        "birchfield, calibrated, no depth filter (as before)",
+        "sgbm, calibrated, with the depth filter")
+UNFILTERED = DepthFilterOptions(enabled=False)
 
 
 def scan(folder: Path, profile, seed: int, mount: CameraMount, views: str) -> Path:
@@ -64,8 +70,10 @@ def scan(folder: Path, profile, seed: int, mount: CameraMount, views: str) -> Pa
     return path
 
 
-def fuse(path: Path, out: Path, method: str, mount=None) -> dict:
-    report = fuse_recording(path, out, FusionOptions(voxel=0.002, method=method, mount=mount))
+def fuse(path: Path, out: Path, method: str, mount=None,
+         depth_filter: DepthFilterOptions | None = None) -> dict:
+    report = fuse_recording(path, out, FusionOptions(voxel=0.002, method=method, mount=mount,
+                                                     depth_filter=depth_filter))
     acc = report["accuracy"]
     return {"accuracy_mm": acc["accuracy_mean_mm"],
             "complete_5mm": acc["completeness_within_5mm"] * 100,
@@ -81,7 +89,11 @@ def run_seed(seed: int, views: str, folder: Path) -> dict:
     out = {"birchfield, calibrated": fuse(path, folder / "f1", "birchfield"),
            "sgbm, calibrated": fuse(path, folder / "f2", "sgbm"),
            "birchfield, bundled mount": fuse(path, folder / "f3", "birchfield",
-                                             CameraMount.load(None))}
+                                             CameraMount.load(None)),
+           "birchfield, calibrated, no depth filter (as before)": fuse(
+               path, folder / "f5", "birchfield", depth_filter=UNFILTERED),
+           "sgbm, calibrated, with the depth filter": fuse(
+               path, folder / "f6", "sgbm", depth_filter=DepthFilterOptions())}
     true = cell_camera(NOTHING_BUT_THE_DESK, seed, CameraMount.load(None)).mount
     desk = scan(folder, dataclasses.replace(NOTHING_BUT_THE_DESK, name="desk"), seed, true,
                 views)

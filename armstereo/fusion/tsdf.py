@@ -103,7 +103,9 @@ class DepthFrame:
     """One depth map to fuse: z-depth (H, W) float32 metres (NaN = none) of a pinhole camera
     with intrinsics ``K`` (3x3, OpenCV: pixel centres at integer coordinates, no distortion)
     at pose ``T_base_camera`` (camera optical frame in base). ``image`` is the matching BGR
-    uint8 picture (for colour) or None; ``pair`` and ``label`` say where it came from."""
+    uint8 picture (for colour) or None; ``pair`` and ``label`` say where it came from;
+    ``weight`` (H, W) float32 >= 0 is each pixel's observation weight (None: 1 everywhere;
+    :mod:`armstereo.fusion.depth_filter` makes it an inverse-variance weight)."""
 
     depth: np.ndarray
     K: np.ndarray
@@ -111,6 +113,7 @@ class DepthFrame:
     image: np.ndarray | None = None
     pair: int = 0
     label: str = ""
+    weight: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         d = np.asarray(self.depth)
@@ -123,6 +126,12 @@ class DepthFrame:
         T = _check_rigid(self.T_base_camera, "T_base_camera")
         if self.image is not None and np.shape(self.image)[:2] != d.shape:
             raise ConfigError(f"image {np.shape(self.image)} and depth {d.shape} differ in size")
+        if self.weight is not None:
+            w = np.ascontiguousarray(self.weight, dtype=np.float32)
+            if w.shape != d.shape or not np.all(np.isfinite(w)) or np.any(w < 0):
+                raise ConfigError(f"weight must be a finite, non-negative {d.shape} map, got "
+                                  f"{w.dtype} {w.shape}")
+            object.__setattr__(self, "weight", w)
         object.__setattr__(self, "depth", np.ascontiguousarray(d, dtype=np.float32))
         object.__setattr__(self, "K", K)
         object.__setattr__(self, "T_base_camera", T)
@@ -216,16 +225,19 @@ class TsdfVolume:
         return int(self.tsdf.nbytes + self.weight.nbytes)
 
     def integrate(self, frame: DepthFrame, weight: float = 1.0) -> int:
-        """Fuse one depth map; returns how many voxels it updated."""
+        """Fuse one depth map, each pixel with ``weight`` times its ``frame.weight`` (pixels
+        of weight 0 are skipped); returns how many voxels it updated."""
         if not (math.isfinite(weight) and weight > 0):
             raise ConfigError(f"observation weight must be > 0, got {weight}")
         T = frame.T_camera_base
         R = np.ascontiguousarray(T[:3, :3])
         t = np.ascontiguousarray(T[:3, 3])
         K = frame.K
+        per_pixel = frame.weight is not None
+        wmap = frame.weight if per_pixel else np.ones((1, 1), np.float32)
         args = (self.tsdf, self.weight, self.origin, self.voxel, R, t, K[0, 0], K[1, 1],
-                K[0, 2], K[1, 2], frame.depth, self.trunc, self.behind, float(weight),
-                INTERPOLATIONS[self.interpolation])
+                K[0, 2], K[1, 2], frame.depth, wmap, per_pixel, self.trunc, self.behind,
+                float(weight), INTERPOLATIONS[self.interpolation])
         nx = self.shape[0]
         if self.threads == 1:
             return int(_integrate_slab(0, nx, *args))
@@ -277,9 +289,10 @@ def _sample_depth(depth, u, v, trunc, interp):
 
 
 @njit(nogil=True, cache=True)
-def _integrate_slab(i0, i1, tsdf, weight, origin, voxel, R, t, fx, fy, cx, cy, depth, trunc,
-                    behind, w_obs, interp):
-    """Fuse ``depth`` into voxels with x index in [i0, i1); returns the number updated."""
+def _integrate_slab(i0, i1, tsdf, weight, origin, voxel, R, t, fx, fy, cx, cy, depth, wmap,
+                    per_pixel, trunc, behind, w_frame, interp):
+    """Fuse ``depth`` into voxels with x index in [i0, i1); returns the number updated.
+    ``wmap`` is the per-pixel weight (read at the nearest pixel) when ``per_pixel``."""
     ny = tsdf.shape[1]
     nz = tsdf.shape[2]
     count = 0
@@ -303,6 +316,11 @@ def _integrate_slab(i0, i1, tsdf, weight, origin, voxel, R, t, fx, fy, cx, cy, d
                 sdf = d - pz
                 if sdf < -behind:
                     continue
+                w_obs = w_frame
+                if per_pixel:
+                    w_obs *= wmap[int(math.floor(v + 0.5)), int(math.floor(u + 0.5))]
+                    if not (w_obs > 0.0):
+                        continue
                 val = min(1.0, sdf / trunc)
                 w_old = weight[i, j, k]
                 w_new = w_old + w_obs

@@ -171,3 +171,37 @@ def test_depth_frame_checks_its_inputs():
         DepthFrame(f.depth, f.K, T)
     with pytest.raises(ConfigError, match="differ"):
         DepthFrame(f.depth, f.K, f.T_base_camera, np.zeros((2, 2, 3), np.uint8))
+
+
+def test_per_pixel_weights_decide_the_mean_and_weight_zero_is_unseen():
+    # Two maps of the plane z = 0 from the same camera, one 2 mm deeper with weight 3: the
+    # fused zero crossing is their weighted mean, 1.5 mm below the plane; the half of the
+    # second map with weight 0 adds nothing there.
+    roi = Roi((-0.02, -0.02, -0.01), (0.02, 0.02, 0.01))
+    volume = TsdfVolume(roi, 0.001, 0.008)
+    a = _plane_frame()
+    w = np.full(a.depth.shape, 3.0, np.float32)
+    w[:, : a.depth.shape[1] // 2] = 0.0
+    b = DepthFrame(a.depth + np.float32(0.002), a.K, a.T_base_camera, weight=w)
+    volume.integrate(a)
+    volume.integrate(b)
+    z = volume.voxel_points(np.array([[0, 0, k] for k in range(volume.shape[2])]))[:, 2]
+    j = volume.shape[1] // 2
+
+    def zero_crossing(i):
+        seen = volume.weight[i, j] > 0
+        return np.interp(0.0, volume.tsdf[i, j][seen] * volume.trunc, z[seen])
+
+    i = volume.shape[0] - 5  # +x: the weighted half of the second map
+    assert zero_crossing(i) == pytest.approx(-0.0015, abs=1e-4)
+    assert volume.weight[i, j, np.argmin(np.abs(z))] == pytest.approx(4.0)
+    assert zero_crossing(4) == pytest.approx(0.0, abs=1e-4)
+    assert volume.weight[4, j, np.argmin(np.abs(z))] == pytest.approx(1.0)
+
+
+def test_depth_frame_checks_its_weights():
+    f = _plane_frame()
+    for bad in (np.ones((2, 2), np.float32), -np.ones_like(f.depth),
+                np.full_like(f.depth, np.nan)):
+        with pytest.raises(ConfigError, match="weight"):
+            DepthFrame(f.depth, f.K, f.T_base_camera, weight=bad)
