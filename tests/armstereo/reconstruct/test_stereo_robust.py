@@ -30,10 +30,10 @@ from armstereo.reconstruct.stereo import PAPER_OPTIONS, birchfield
 from tests.support import MIDDLEBURY
 from tests.support.images import box_pair, texture
 
-# bad-2 with the defaults, measured 2.91 / 1.09 / 7.06 / 4.54 %
-# (bench/results/stereo_edges.md); the bounds leave room for tie-breaking changes, not
-# for a broken matcher.
-BAD2_BOUNDS = {"tsukuba": 0.04, "venus": 0.02, "teddy": 0.085, "cones": 0.055}
+# bad-2 with the defaults, measured 2.84 / 0.86 / 6.35 / 4.12 % since the brightness
+# equalisation and the plain fill (bench/results/radiometric.md, "unchanged"); the bounds
+# leave room for tie-breaking changes, not for a broken matcher.
+BAD2_BOUNDS = {"tsukuba": 0.035, "venus": 0.012, "teddy": 0.075, "cones": 0.048}
 
 
 def middlebury(name):
