@@ -62,9 +62,12 @@ def equalize(grey_l: np.ndarray, grey_r: np.ndarray, lmask: np.ndarray, rmask: n
     n = -(-(min_disparity + max_disparity) // 2) - lo
     if h < 2 * ROW_STEP or n < 1 or lo + n >= w:
         return grey_r
-    half = [cv2.resize(g, (w, h), interpolation=cv2.INTER_AREA) for g in (grey_l, grey_r)]
-    masks = [cv2.resize(m.view(np.uint8), (w, h), interpolation=cv2.INTER_NEAREST) > 0
-             for m in (lmask, rmask)]
+    # an even-sized crop: OpenCV's area resize by exactly 2 is its fast path (an odd size
+    # costs about a millisecond more)
+    half = [cv2.resize(g[:2 * h, :2 * w], (w, h), interpolation=cv2.INTER_AREA)
+            for g in (grey_l, grey_r)]
+    masks = [cv2.resize(m[:2 * h, :2 * w].view(np.uint8), (w, h),
+                        interpolation=cv2.INTER_NEAREST) > 0 for m in (lmask, rmask)]
     d = first_pass(half[0][::ROW_STEP], half[1][::ROW_STEP], n, min_disparity=lo,
                    left_mask=masks[0][::ROW_STEP], right_mask=masks[1][::ROW_STEP])
     samples = _samples(half, masks, d)
@@ -76,9 +79,9 @@ def equalize(grey_l: np.ndarray, grey_r: np.ndarray, lmask: np.ndarray, rmask: n
     # R ** gamma by a table of the 256 grey levels, times the gain field at full size
     curve = np.power(np.maximum(np.arange(256, dtype=np.float32), np.float32(0.5)),
                      np.float32(gamma))
-    out = curve[grey_r]
-    out *= cv2.resize(gain, (W, H), interpolation=cv2.INTER_LINEAR)
-    return np.clip(np.rint(out), 0, 255).astype(np.uint8)
+    field = cv2.resize(gain, (W, H), interpolation=cv2.INTER_LINEAR)
+    # OpenCV's product to uint8 rounds and saturates: np.clip(np.rint(.)) in one pass
+    return cv2.multiply(curve[grey_r], field, dtype=cv2.CV_8U)
 
 
 def _worth_applying(samples, gamma: float, gain: np.ndarray) -> bool:
