@@ -15,7 +15,11 @@
    the desk's lowest real tops (15 and 20 mm) keep cell medians above 11.8 mm (1st
    percentile; measured on seeds 0-4 of the realistic cell). *Split*: a cluster whose top
    view falls apart into parts of at least ``min_size_m`` squared when eroded by
-   ``split_neck_m`` is split (:func:`.cluster.split_bridged`);
+   ``split_neck_m`` is split (:func:`.cluster.split_bridged`). *Valleys*: a cluster whose
+   tops (cells of ``cell_m`` with median height at least ``min_height_m``) fall into two or
+   more parts over lower cells is split, however wide the low band between them
+   (:func:`.cluster.split_valleys`, ``split_valleys``): two close objects whose gap the
+   matcher filled at a few millimetres;
 3. ``objects``: a gravity-aligned box, model, colour and texture per group (:mod:`.objects`,
    :mod:`.appearance`);
 4. ``height_map`` and ``occupancy`` (:mod:`.heightmap`); objects that touch unobserved space
@@ -37,7 +41,7 @@ import numpy as np
 from armstereo.errors import ConfigError
 from armstereo.scene.appearance import Appearance, appearance
 from armstereo.scene.cloud import SceneCloud
-from armstereo.scene.cluster import NOISE, split_bridged, voxel_clusters
+from armstereo.scene.cluster import NOISE, split_bridged, split_valleys, voxel_clusters
 from armstereo.scene.heightmap import HeightMap, Occupancy, height_map, occupancy
 from armstereo.scene.objects import ObjectShape, measure_shape
 from armstereo.scene.plane import SupportPlane, fit_support_plane, unit_up
@@ -50,6 +54,9 @@ MIN_PATCH_SHARE = 0.5
 # closer to the camera than the table; about 0.8 for a round top in an evenly sampled cloud),
 # mismatch fragments are sparse streaks (0.51 for the largest one seen, seed 1 of the demo).
 MIN_FILL = 0.6  # height-map cells around an object searched for unobserved space
+# plane cells whose median height (of every point, the table's too) decides whether they are
+# an object's top for split_valleys (m)
+VALLEY_CELL = 0.01
 
 
 @dataclass(frozen=True)
@@ -75,6 +82,9 @@ class SceneOptions:
     gate_height_m: float = 0.0
     # clusters joined by bridges narrower than twice this are split (0: never)
     split_neck_m: float = 0.015
+    # clusters whose tops (cells with median height >= min_height_m) fall apart over a low
+    # valley are split, points beyond split_neck_m of every top dropped (False: never)
+    split_valleys: bool = True
     seed: int = 0
 
     def check(self) -> None:
@@ -96,6 +106,9 @@ class SceneOptions:
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
                 raise ConfigError(f"scene option {name} must be a non-negative number, got "
                                   f"{v!r}")
+        if not isinstance(self.split_valleys, bool):
+            raise ConfigError(f"scene option split_valleys must be true or false, got "
+                              f"{self.split_valleys!r}")
         if self.gate_height_m > 0 and self.gate_cell_m <= 0:
             raise ConfigError("scene option gate_cell_m must be positive when the gate is on")
         if self.occupancy_cell_m < self.cell_m:
@@ -204,6 +217,10 @@ def analyze_scene(cloud: SceneCloud, options: SceneOptions = SceneOptions()) -> 
     if options.split_neck_m > 0:
         labels = split_bridged(uvh[above, :2], labels, options.cell_m, options.split_neck_m,
                                options.min_size_m ** 2)
+    if options.split_valleys:
+        high = _cell_median_above(uvh, VALLEY_CELL, options.min_height_m)[above]
+        labels = split_valleys(uvh[above, :2], high, labels, VALLEY_CELL,
+                               options.min_size_m ** 2, options.split_neck_m)
     if options.gate_height_m > 0:
         rim = np.flatnonzero(band & ~gated)
         rim_labels = _attach_rims(uvh[above, :2], labels, uvh[rim, :2], options.gate_cell_m)

@@ -161,3 +161,61 @@ def _bridged_parts(uv: np.ndarray, cell_m: float, kernel: np.ndarray, radius: in
     # DIST_LABEL_PIXEL numbers the zero pixels 1.. in row-major order
     cell_part = seed_part[nearest.reshape(-1) - 1].reshape(shape)
     return cell_part[ij[:, 1], ij[:, 0]]
+
+
+
+def split_valleys(uv: np.ndarray, high: np.ndarray, labels: np.ndarray, cell_m: float,
+                  min_area_m2: float, reach_m: float) -> np.ndarray:
+    """Labels (N,) with every cluster whose tops stand apart over a low valley split.
+
+    ``uv`` (N, 2): plane coordinates, m; ``high`` (N,) bool: the point lies in a plane cell
+    of ``cell_m`` (the grid ``floor(uv / cell_m)``) whose points, the table's too, have an
+    object's median height. When a cluster's high cells fall into two or more parts of at
+    least ``min_area_m2``, every point within ``reach_m`` of a part goes to the nearest part,
+    the rest (the low valley far from every top: mismatches, a sheet too thin to be an
+    object) to :data:`NOISE`. Two close objects whose gap the matcher filled with points a
+    few millimetres high are joined in 3-D by that band however wide it is, and
+    split_bridged cuts only narrow bridges. A cluster with one high part (one object with a
+    low skirt) is left alone. New labels follow the existing ones."""
+    out = labels.copy()
+    next_label = int(labels.max()) + 1 if len(labels) else 0
+    for k in range(next_label):
+        idx = np.flatnonzero(labels == k)
+        parts = _valley_parts(uv[idx], high[idx], cell_m, min_area_m2, reach_m)
+        if parts is None:
+            continue
+        out[idx[parts < 0]] = NOISE
+        for p in range(1, int(parts.max()) + 1):
+            out[idx[parts == p]] = next_label
+            next_label += 1
+    return out
+
+
+def _valley_parts(uv: np.ndarray, high: np.ndarray, cell_m: float, min_area_m2: float,
+                  reach_m: float) -> np.ndarray | None:
+    """Part index (N,) 0, 1, ... of each point (-1: beyond ``reach_m`` of every part), or None
+    when the cluster has fewer than two high parts."""
+    ij = np.floor(uv / cell_m).astype(np.int64)
+    ij -= ij.min(axis=0) - 1
+    shape = (int(ij[:, 1].max()) + 2, int(ij[:, 0].max()) + 2)
+    cell = ij[:, 1] * shape[1] + ij[:, 0]
+    top = np.zeros(shape[0] * shape[1], dtype=np.uint8)
+    top[cell[high]] = 1
+    n, comp = cv2.connectedComponents(top.reshape(shape), connectivity=8)
+    if n <= 2:
+        return None
+    area = np.bincount(comp.reshape(-1), minlength=n)[1:] * cell_m ** 2
+    big = [c for c in range(1, n) if area[c - 1] >= min_area_m2]
+    if len(big) < 2:
+        return None
+    seeds = np.ones(shape, dtype=np.uint8)
+    for c in big:
+        seeds[comp == c] = 0
+    dist, nearest = cv2.distanceTransformWithLabels(seeds, cv2.DIST_L2, 5,
+                                                    labelType=cv2.DIST_LABEL_PIXEL)
+    seed_cells = np.flatnonzero(seeds.reshape(-1) == 0)
+    seed_part = np.searchsorted(big, comp.reshape(-1)[seed_cells])
+    # DIST_LABEL_PIXEL numbers the zero pixels 1.. in row-major order
+    cell_part = seed_part[nearest.reshape(-1) - 1]
+    cell_part[dist.reshape(-1) * cell_m > reach_m] = -1
+    return cell_part[cell]

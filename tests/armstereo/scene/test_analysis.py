@@ -117,7 +117,7 @@ def test_a_bare_table_has_no_objects():
 @pytest.mark.parametrize("bad", [dict(cell_m=0.0), dict(occupancy_cell_m=0.001),
                                  dict(max_tilt_deg=95.0), dict(min_points=0),
                                  dict(up=(0.0, 0.0, 0.0)), dict(gate_height_m=-0.001),
-                                 dict(split_neck_m=float("nan"))])
+                                 dict(split_neck_m=float("nan")), dict(split_valleys="yes")])
 def test_bad_options_are_refused(bad):
     cloud = scan(default_truth(), spacing=0.005)
     with pytest.raises(ConfigError):
@@ -142,6 +142,13 @@ def test_table_noise_does_not_chain_close_objects_together():
     score = score_scene(analyze_scene(cloud, SceneOptions(gate_height_m=0.008)), truth)
     assert not score.missed and not score.phantoms
     # without the gate the noise points bridge the gap: the test can fail
-    ungated = score_scene(analyze_scene(cloud, SceneOptions(gate_height_m=0.0,
-                                                            split_neck_m=0.0)), truth)
+    ungated = score_scene(analyze_scene(cloud, SceneOptions(gate_height_m=0.0, split_neck_m=0.0,
+                                                            split_valleys=False)), truth)
     assert ungated.missed or ungated.phantoms
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_close_low_objects_on_a_noisy_table_are_apart_by_default(seed):
+    truth, cloud = _close_low_boxes_on_a_noisy_table(seed)
+    score = score_scene(analyze_scene(cloud), truth)
+    assert not score.missed and not score.phantoms

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from armstereo.scene.cluster import NOISE, split_bridged, voxel_clusters
+from armstereo.scene.cluster import NOISE, split_bridged, split_valleys, voxel_clusters
 from armstereo.scene.synthetic import default_truth, scan
 
 
@@ -86,3 +86,35 @@ def test_one_object_and_noise_labels_are_left_alone():
     uv = np.vstack([_square(0.0, 0.0, 0.08), _square(0.3, 0.3, 0.01)])
     labels = np.r_[np.zeros(1600, dtype=np.int64), np.full(len(uv) - 1600, NOISE)]
     assert np.array_equal(split_bridged(uv, labels, 0.005, 0.01, 0.02 ** 2), labels)
+
+
+def _top(u0, v0, side_u, side_v, height, spacing=0.002):
+    """(N, 3) plane points of a level top ``height`` above the plane."""
+    u, v = np.meshgrid(np.arange(u0, u0 + side_u, spacing), np.arange(v0, v0 + side_v, spacing))
+    return np.column_stack([u.ravel(), v.ravel(), np.full(u.size, height)])
+
+
+def test_two_tops_over_a_wide_low_band_are_split_and_far_low_points_dropped():
+    # a tray (15 mm) and a keypad (20 mm) 2 cm apart, the gap filled at 6 mm across its whole
+    # 8 cm width (too wide for split_bridged), and a 2 mm sheet beyond the tray
+    tray, keypad = _top(0.0, 0.0, 0.20, 0.14, 0.015), _top(0.0, 0.16, 0.08, 0.12, 0.020)
+    gap, sheet = _top(0.0, 0.14, 0.08, 0.02, 0.006), _top(0.20, 0.0, 0.15, 0.14, 0.002)
+    uvh = np.vstack([tray, keypad, gap, sheet])
+    labels = split_valleys(uvh[:, :2], uvh[:, 2] > 0.01, np.zeros(len(uvh), dtype=np.int64),
+                           0.005, 0.02 ** 2, 0.015)
+    t, k = labels[:len(tray)], labels[len(tray):len(tray) + len(keypad)]
+    assert len(np.unique(t)) == 1 and len(np.unique(k)) == 1 and t[0] != k[0] >= 0
+    g = labels[len(tray) + len(keypad):len(tray) + len(keypad) + len(gap)]
+    assert set(np.unique(g)) <= {t[0], k[0]}  # the gap goes to the nearer top
+    far = uvh[:, 0] > 0.20 + 0.02  # more than 15 mm (and a cell) beyond the tray
+    assert np.all(labels[far] == NOISE)
+    assert np.all(labels[(uvh[:, 0] < 0.20) & (uvh[:, 2] > 0.01)] != NOISE)
+
+
+def test_one_top_with_a_low_skirt_and_noise_labels_are_left_alone():
+    top, skirt = _top(0.0, 0.0, 0.10, 0.10, 0.03), _top(0.10, 0.0, 0.10, 0.10, 0.004)
+    uvh = np.vstack([top, skirt, _top(0.5, 0.5, 0.01, 0.01, 0.03)])
+    labels = np.r_[np.zeros(len(top) + len(skirt), dtype=np.int64),
+                   np.full(len(uvh) - len(top) - len(skirt), NOISE)]
+    assert np.array_equal(split_valleys(uvh[:, :2], uvh[:, 2] > 0.01, labels, 0.005, 0.02 ** 2,
+                                        0.015), labels)
