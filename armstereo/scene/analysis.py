@@ -41,7 +41,13 @@ import numpy as np
 from armstereo.errors import ConfigError
 from armstereo.scene.appearance import Appearance, appearance
 from armstereo.scene.cloud import SceneCloud
-from armstereo.scene.cluster import NOISE, split_bridged, split_valleys, voxel_clusters
+from armstereo.scene.cluster import (
+    NOISE,
+    merge_covered,
+    split_bridged,
+    split_valleys,
+    voxel_clusters,
+)
 from armstereo.scene.heightmap import HeightMap, Occupancy, height_map, occupancy
 from armstereo.scene.objects import ObjectShape, measure_shape
 from armstereo.scene.plane import SupportPlane, fit_support_plane, unit_up
@@ -57,6 +63,8 @@ MIN_FILL = 0.6  # height-map cells around an object searched for unobserved spac
 # plane cells whose median height (of every point, the table's too) decides whether they are
 # an object's top for split_valleys (m)
 VALLEY_CELL = 0.01
+# a cluster whose top-view cells (VALLEY_CELL) are this share inside a larger one's joins it
+COVERED_SHARE = 0.5
 
 
 @dataclass(frozen=True)
@@ -234,25 +242,19 @@ def analyze_scene(cloud: SceneCloud, options: SceneOptions = SceneOptions()) -> 
     timings["height_map"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    objects, rejected = [], 0
-    n_clusters = int(labels.max()) + 1 if len(labels) else 0
-    order = np.argsort(labels, kind="stable")
-    bounds = np.searchsorted(labels[order], np.arange(n_clusters + 1))
     density = plane.inliers / max(plane.area_m2, 1e-9)  # table points per square metre
-    min_points = _min_object_points(density, options)
-    for k in range(n_clusters):
-        members = order[bounds[k]:bounds[k + 1]]
-        idx = above[members]
-        core = int(np.count_nonzero(members < n_core))  # rims alone make no object
-        if core < min_points:
-            rejected += 1
-            continue
-        shape = measure_shape(uvh[idx], plane.rms_m)
-        fill = core / (shape.measured_size[0] * shape.measured_size[1] * density)
-        if (shape.measured_width < options.min_size_m or shape.height < options.min_height_m
-                or shape.kept.sum() < min_points or fill < MIN_FILL):
-            rejected += 1
-            continue
+    shapes = _object_shapes(labels, above, n_core, uvh, plane, options, density)
+    # a part of an object that the clustering cut off and that passes as an object itself
+    # (an obliquely seen side) joins the object whose top view holds it; only objects are
+    # merged: the rejected fragments beside objects would fatten their footprints
+    merged = merge_covered(uvh[above], labels, VALLEY_CELL, COVERED_SHARE,
+                           options.plane_threshold_m, eligible=[k for k, _, _ in shapes[0]])
+    if not np.array_equal(merged, labels):
+        labels = merged
+        shapes = _object_shapes(labels, above, n_core, uvh, plane, options, density)
+    accepted, rejected = shapes
+    objects = []
+    for _, idx, shape in accepted:
         colors = None if cloud.colors_bgr is None else cloud.colors_bgr[idx][shape.kept]
         partial = _touches(hmap, outside, uvh[idx, :2])
         objects.append(_scene_object(len(objects), shape, plane, uvh[idx][shape.kept],
@@ -264,6 +266,37 @@ def analyze_scene(cloud: SceneCloud, options: SceneOptions = SceneOptions()) -> 
     timings["occupancy"] = time.perf_counter() - t0
     return SceneAnalysis(cloud.source, len(cloud.points), plane, objects, rejected, hmap, occ,
                          options, timings)
+
+
+def _object_shapes(labels: np.ndarray, above: np.ndarray, n_core: int, uvh: np.ndarray,
+                   plane: SupportPlane, options: SceneOptions, density: float
+                   ) -> tuple[list[tuple[int, np.ndarray, ObjectShape]], int]:
+    """The clusters that pass as objects, as ``(label, point indices, shape)``, and how many
+    were rejected (too few points, too small, too low or too sparse: module doc, step 2).
+    ``above``: the clustered points' indices into ``uvh`` (the first ``n_core`` passed the
+    gate); ``density``: table points per square metre."""
+    accepted, rejected = [], 0
+    n_clusters = int(labels.max()) + 1 if len(labels) else 0
+    order = np.argsort(labels, kind="stable")
+    bounds = np.searchsorted(labels[order], np.arange(n_clusters + 1))
+    min_points = _min_object_points(density, options)
+    for k in range(n_clusters):
+        members = order[bounds[k]:bounds[k + 1]]
+        if len(members) == 0:  # a label merged away
+            continue
+        idx = above[members]
+        core = int(np.count_nonzero(members < n_core))  # rims alone make no object
+        if core < min_points:
+            rejected += 1
+            continue
+        shape = measure_shape(uvh[idx], plane.rms_m)
+        fill = core / (shape.measured_size[0] * shape.measured_size[1] * density)
+        if (shape.measured_width < options.min_size_m or shape.height < options.min_height_m
+                or shape.kept.sum() < min_points or fill < MIN_FILL):
+            rejected += 1
+            continue
+        accepted.append((k, idx, shape))
+    return accepted, rejected
 
 
 def _cell_median_above(uvh: np.ndarray, cell_m: float, height_m: float) -> np.ndarray:

@@ -219,3 +219,46 @@ def _valley_parts(uv: np.ndarray, high: np.ndarray, cell_m: float, min_area_m2: 
     cell_part = seed_part[nearest.reshape(-1) - 1]
     cell_part[dist.reshape(-1) * cell_m > reach_m] = -1
     return cell_part[cell]
+
+
+
+def merge_covered(uvh: np.ndarray, labels: np.ndarray, cell_m: float, share: float,
+                  tolerance_m: float, *, eligible: list[int] | None = None) -> np.ndarray:
+    """Labels (N,) with every cluster that stands within a larger cluster's top view, no
+    higher than it, merged into it.
+
+    ``uvh`` (N, 3): plane coordinates and heights, m; top views rasterised in cells of
+    ``cell_m``. A cluster at least ``share`` of whose cells hold points of a larger cluster
+    too, and whose top (95th percentile height) is at most ``tolerance_m`` above that
+    cluster's, takes its label (the smallest clusters first). Seen obliquely, an object's side
+    and its top can be apart in 3-D by more than a voxel (the edge the matcher lost), yet they
+    are one object; two objects side by side share only their boundary cells, and a
+    mismatch blob floating above an object is higher than it. Only the clusters ``eligible``
+    (None: all) merge or are merged; :data:`NOISE` stays."""
+    out = labels.copy()
+    n = int(labels.max()) + 1 if len(labels) else 0
+    if n < 2:
+        return out
+    ij = np.floor(uvh[:, :2] / cell_m).astype(np.int64)
+    ij -= ij.min(axis=0)
+    key = ij[:, 0] * (int(ij[:, 1].max()) + 1) + ij[:, 1]
+    members = [np.flatnonzero(labels == k) for k in range(n)]
+    cells = [np.unique(key[m]) for m in members]
+    tops = [float(np.percentile(uvh[m, 2], 95)) if len(m) else 0.0 for m in members]
+    sizes = np.array([len(c) for c in cells])
+    if eligible is not None:
+        sizes[np.setdiff1d(np.arange(n), np.asarray(eligible, dtype=np.int64))] = 0
+    for k in np.argsort(sizes, kind="stable"):
+        if sizes[k] == 0:
+            continue
+        for other in np.argsort(-sizes, kind="stable"):
+            if (sizes[other] <= sizes[k] or other == k
+                    or tops[k] > tops[other] + tolerance_m):
+                continue
+            shared = np.intersect1d(cells[k], cells[other], assume_unique=True).size
+            if shared >= share * sizes[k]:
+                out[out == k] = other
+                cells[other] = np.union1d(cells[other], cells[k])
+                sizes[other], sizes[k] = len(cells[other]), 0
+                break
+    return out

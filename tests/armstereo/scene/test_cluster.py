@@ -6,7 +6,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from armstereo.scene.cluster import NOISE, split_bridged, split_valleys, voxel_clusters
+from armstereo.scene.cluster import (
+    NOISE,
+    merge_covered,
+    split_bridged,
+    split_valleys,
+    voxel_clusters,
+)
 from armstereo.scene.synthetic import default_truth, scan
 
 
@@ -118,3 +124,18 @@ def test_one_top_with_a_low_skirt_and_noise_labels_are_left_alone():
                    np.full(len(uvh) - len(top) - len(skirt), NOISE)]
     assert np.array_equal(split_valleys(uvh[:, :2], uvh[:, 2] > 0.01, labels, 0.005, 0.02 ** 2,
                                         0.015), labels)
+
+
+def test_a_lower_part_within_an_objects_top_view_joins_it_and_nothing_else_does():
+    top = _top(0.0, 0.0, 0.08, 0.08, 0.10)  # a pot's top, 10 cm high
+    side = _top(0.0, 0.0, 0.06, 0.03, 0.05)  # its side, cut off in 3-D, under the top view
+    blob = _top(0.02, 0.02, 0.04, 0.04, 0.14)  # a mismatch blob floating above it
+    neighbour = _top(0.085, 0.0, 0.06, 0.06, 0.05)  # the next object, side by side
+    uvh = np.vstack([top, side, blob, neighbour])
+    labels = np.repeat(np.arange(4), [len(top), len(side), len(blob), len(neighbour)])
+    merged = merge_covered(uvh, labels, 0.01, 0.5, 0.005)
+    assert np.array_equal(np.unique(merged[:len(top) + len(side)]), [0])
+    assert np.array_equal(merged[len(top) + len(side):], labels[len(top) + len(side):])
+    # only the clusters that passed as objects take part
+    assert np.array_equal(merge_covered(uvh, labels, 0.01, 0.5, 0.005, eligible=[0, 2, 3]),
+                          labels)
