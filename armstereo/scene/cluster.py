@@ -150,17 +150,23 @@ def _bridged_parts(uv: np.ndarray, cell_m: float, kernel: np.ndarray, radius: in
            if g.sum() * cell_m ** 2 >= min_area_m2]
     if len(big) < 2:
         return None
-    # nearest core cell of a big part, for every cell: a distance transform with labels
-    seeds = np.ones(shape, dtype=np.uint8)
+    cell_part, _ = _nearest_part(comp, big)
+    return cell_part[ij[:, 1], ij[:, 0]]
+
+
+def _nearest_part(comp: np.ndarray, big: list[int]) -> tuple[np.ndarray, np.ndarray]:
+    """For every cell of the component image ``comp`` (int labels), the index into ``big``
+    of the nearest cell of one of those components, and the distance to it (cells): a
+    distance transform with labels."""
+    seeds = np.ones(comp.shape, dtype=np.uint8)
     for c in big:
         seeds[comp == c] = 0
-    _, nearest = cv2.distanceTransformWithLabels(seeds, cv2.DIST_L2, 5,
-                                                 labelType=cv2.DIST_LABEL_PIXEL)
+    dist, nearest = cv2.distanceTransformWithLabels(seeds, cv2.DIST_L2, 5,
+                                                    labelType=cv2.DIST_LABEL_PIXEL)
     seed_cells = np.flatnonzero(seeds.reshape(-1) == 0)
     seed_part = np.searchsorted(big, comp.reshape(-1)[seed_cells])
     # DIST_LABEL_PIXEL numbers the zero pixels 1.. in row-major order
-    cell_part = seed_part[nearest.reshape(-1) - 1].reshape(shape)
-    return cell_part[ij[:, 1], ij[:, 0]]
+    return seed_part[nearest - 1], dist
 
 
 
@@ -208,17 +214,9 @@ def _valley_parts(uv: np.ndarray, high: np.ndarray, cell_m: float, min_area_m2: 
     big = [c for c in range(1, n) if area[c - 1] >= min_area_m2]
     if len(big) < 2:
         return None
-    seeds = np.ones(shape, dtype=np.uint8)
-    for c in big:
-        seeds[comp == c] = 0
-    dist, nearest = cv2.distanceTransformWithLabels(seeds, cv2.DIST_L2, 5,
-                                                    labelType=cv2.DIST_LABEL_PIXEL)
-    seed_cells = np.flatnonzero(seeds.reshape(-1) == 0)
-    seed_part = np.searchsorted(big, comp.reshape(-1)[seed_cells])
-    # DIST_LABEL_PIXEL numbers the zero pixels 1.. in row-major order
-    cell_part = seed_part[nearest.reshape(-1) - 1]
-    cell_part[dist.reshape(-1) * cell_m > reach_m] = -1
-    return cell_part[cell]
+    cell_part, dist = _nearest_part(comp, big)
+    cell_part[dist * cell_m > reach_m] = -1
+    return cell_part.reshape(-1)[cell]
 
 
 
