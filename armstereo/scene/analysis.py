@@ -16,10 +16,12 @@
    percentile; measured on seeds 0-4 of the realistic cell). *Split*: a cluster whose top
    view falls apart into parts of at least ``min_size_m`` squared when eroded by
    ``split_neck_m`` is split (:func:`.cluster.split_bridged`). *Valleys*: a cluster whose
-   tops (cells of ``cell_m`` with median height at least ``min_height_m``) fall into two or
-   more parts over lower cells is split, however wide the low band between them
-   (:func:`.cluster.split_valleys`, ``split_valleys``): two close objects whose gap the
-   matcher filled at a few millimetres;
+   tops (:data:`VALLEY_CELL` cells whose median height, over all points, is at least
+   ``min_height_m``) fall into two or more parts over lower cells is split and the valley's
+   points dropped, however wide the low band (:func:`.cluster.split_valleys`,
+   ``split_valleys``): two close objects whose gap the matcher filled at a few millimetres.
+   After the tests, an object within a larger one's top view and no higher joins it
+   (:func:`.cluster.merge_covered`: an obliquely seen side cut off from its top);
 3. ``objects``: a gravity-aligned box, model, colour and texture per group (:mod:`.objects`,
    :mod:`.appearance`);
 4. ``height_map`` and ``occupancy`` (:mod:`.heightmap`); objects that touch unobserved space

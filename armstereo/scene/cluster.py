@@ -169,7 +169,6 @@ def _nearest_part(comp: np.ndarray, big: list[int]) -> tuple[np.ndarray, np.ndar
     return seed_part[nearest - 1], dist
 
 
-
 def split_valleys(uv: np.ndarray, high: np.ndarray, labels: np.ndarray, cell_m: float,
                   min_area_m2: float, reach_m: float) -> np.ndarray:
     """Labels (N,) with every cluster whose tops stand apart over a low valley split.
@@ -217,7 +216,6 @@ def _valley_parts(uv: np.ndarray, high: np.ndarray, cell_m: float, min_area_m2: 
     cell_part, dist = _nearest_part(comp, big)
     cell_part[dist * cell_m > reach_m] = -1
     return cell_part.reshape(-1)[cell]
-
 
 
 def merge_covered(uvh: np.ndarray, labels: np.ndarray, cell_m: float, share: float,
