@@ -249,16 +249,19 @@ def analyze_scene(cloud: SceneCloud, options: SceneOptions = SceneOptions()) -> 
 
     t0 = time.perf_counter()
     density = plane.inliers / max(plane.area_m2, 1e-9)  # table points per square metre
-    shapes = _object_shapes(labels, above, n_core, uvh, plane, options, density)
+    accepted, rejected = _object_shapes(labels, above, n_core, uvh, plane, options, density)
     # a part of an object that the clustering cut off and that passes as an object itself
     # (an obliquely seen side) joins the object whose top view holds it; only objects are
     # merged: the rejected fragments beside objects would fatten their footprints
     merged = merge_covered(uvh[above], labels, VALLEY_CELL, COVERED_SHARE,
-                           options.plane_threshold_m, eligible=[k for k, _, _ in shapes[0]])
-    if not np.array_equal(merged, labels):
+                           options.plane_threshold_m, eligible=[k for k, _, _ in accepted])
+    changed = np.unique(merged[merged != labels])  # the objects that took others in
+    if len(changed):
         labels = merged
-        shapes = _object_shapes(labels, above, n_core, uvh, plane, options, density)
-    accepted, rejected = shapes
+        kept = [a for a in accepted if a[0] in set(labels.tolist()) and a[0] not in changed]
+        again, lost = _object_shapes(labels, above, n_core, uvh, plane, options, density,
+                                     only=changed)
+        accepted, rejected = sorted(kept + again, key=lambda a: a[0]), rejected + lost
     objects = []
     for _, idx, shape in accepted:
         colors = None if cloud.colors_bgr is None else cloud.colors_bgr[idx][shape.kept]
@@ -275,18 +278,20 @@ def analyze_scene(cloud: SceneCloud, options: SceneOptions = SceneOptions()) -> 
 
 
 def _object_shapes(labels: np.ndarray, above: np.ndarray, n_core: int, uvh: np.ndarray,
-                   plane: SupportPlane, options: SceneOptions, density: float
+                   plane: SupportPlane, options: SceneOptions, density: float, *,
+                   only: np.ndarray | None = None
                    ) -> tuple[list[tuple[int, np.ndarray, ObjectShape]], int]:
-    """The clusters that pass as objects, as ``(label, point indices, shape)``, and how many
-    were rejected (too few points, too small, too low or too sparse: module doc, step 2).
-    ``above``: the clustered points' indices into ``uvh`` (the first ``n_core`` passed the
-    gate); ``density``: table points per square metre."""
+    """The clusters (``only`` these labels, None: all) that pass as objects, as ``(label,
+    point indices, shape)``, and how many were rejected (too few points, too small, too low
+    or too sparse: module doc, step 2). ``above``: the clustered points' indices into
+    ``uvh`` (the first ``n_core`` passed the gate); ``density``: table points per square
+    metre."""
     accepted, rejected = [], 0
     n_clusters = int(labels.max()) + 1 if len(labels) else 0
     order = np.argsort(labels, kind="stable")
     bounds = np.searchsorted(labels[order], np.arange(n_clusters + 1))
     min_points = _min_object_points(density, options)
-    for k in range(n_clusters):
+    for k in (range(n_clusters) if only is None else only.tolist()):
         members = order[bounds[k]:bounds[k + 1]]
         if len(members) == 0:  # a label merged away
             continue
