@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import copy
+import math
 
+import numpy as np
 import pytest
 
 from armstereo.errors import ConfigError
@@ -37,6 +39,27 @@ def test_the_truth_itself_scores_zero():
         "crate": 0.0, "cube": 0.0, "can": None, "ball": None}
 
 
+
+def test_plane_height_is_measured_at_the_tables_centre():
+    """A table 0.45 m from the base origin: a plane tilted 0.2 deg about the table's centre
+    has no height error there, although its offset at the origin is 1.6 mm off; a plane
+    shifted 1 mm up is 1 mm off whatever its tilt."""
+    from armstereo.transforms import make_T
+
+    truth = SceneTruth([table(T=make_T(np.eye(3), (-0.45, 0.0, 0.02)))], "table")
+    n = np.array([math.sin(math.radians(0.2)), 0.0, math.cos(math.radians(0.2))])
+    centre = np.array([-0.45, 0.0, 0.02])
+    for shift in (0.0, 0.001):
+        doc = {"plane": {"normal": n.tolist(), "height_m": float(n @ centre) + shift * n[2]},
+               "objects": []}
+        score = score_scene(doc, truth)
+        assert score.plane_tilt_deg == pytest.approx(0.2)
+        assert score.plane_height_error_m == pytest.approx(shift, abs=1e-9)
+    assert abs(float(n @ centre) - 0.02) > 0.0015  # the offset alone would be 1.6 mm off
+    flipped = {"plane": {"normal": (-n).tolist(), "height_m": -float(n @ centre)}, "objects": []}
+    assert score_scene(flipped, truth).plane_height_error_m == pytest.approx(0.0, abs=1e-9)
+
+
 def test_errors_are_found_minus_true():
     truth = _truth()
     doc = _perfect(truth)
@@ -49,7 +72,7 @@ def test_errors_are_found_minus_true():
     doc["objects"][1]["yaw_deg"] += 88.0  # a square: 88 deg off is 2 deg off
     score = score_scene(doc, truth)
     assert score.plane_tilt_deg == pytest.approx(0.573, abs=1e-3)
-    assert score.plane_height_error_m == pytest.approx(0.002)
+    assert score.plane_height_error_m == pytest.approx(0.002, abs=1e-6)  # along the true up
     m = {s.name: s for s in score.matched}
     assert m["crate"].center_error_m == pytest.approx(0.003)
     assert m["crate"].width_error_m == pytest.approx(0.004)
