@@ -117,7 +117,8 @@ def test_a_bare_table_has_no_objects():
 @pytest.mark.parametrize("bad", [dict(cell_m=0.0), dict(occupancy_cell_m=0.001),
                                  dict(max_tilt_deg=95.0), dict(min_points=0),
                                  dict(up=(0.0, 0.0, 0.0)), dict(gate_height_m=-0.001),
-                                 dict(split_neck_m=float("nan")), dict(split_valleys="yes")])
+                                 dict(split_neck_m=float("nan")), dict(split_valleys="yes"),
+                                 dict(merge_split_tops=1)])
 def test_bad_options_are_refused(bad):
     cloud = scan(default_truth(), spacing=0.005)
     with pytest.raises(ConfigError):

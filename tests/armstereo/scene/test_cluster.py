@@ -9,6 +9,7 @@ import pytest
 from armstereo.scene.cluster import (
     NOISE,
     merge_covered,
+    merge_split_tops,
     split_bridged,
     split_valleys,
     voxel_clusters,
@@ -139,3 +140,35 @@ def test_a_lower_part_within_an_objects_top_view_joins_it_and_nothing_else_does(
     # only the clusters that passed as objects take part
     assert np.array_equal(merge_covered(uvh, labels, 0.01, 0.5, 0.005, eligible=[0, 2, 3]),
                           labels)
+
+
+def test_a_sliver_beside_a_top_at_the_same_height_joins_it():
+    """A mug's rim seen as two arcs (a glossy top's lost highlight): one piece 25 mm wide
+    beside another at the same height, a cell apart, is one object."""
+    a = _top(0.0, 0.0, 0.07, 0.025, 0.090)
+    b = _top(0.0, 0.035, 0.07, 0.03, 0.088)
+    uvh = np.vstack([a, b])
+    labels = np.repeat([0, 1], [len(a), len(b)])
+    merged = merge_split_tops(uvh, labels, 0.01, 0.035, 0.005, 0.05)
+    assert len(np.unique(merged)) == 1
+    # not eligible (not objects): left alone
+    assert np.array_equal(merge_split_tops(uvh, labels, 0.01, 0.035, 0.005, 0.05,
+                                           eligible=[0]), labels)
+
+
+def test_objects_side_by_side_stay_apart_unless_one_is_a_sliver_at_the_same_height():
+    box = _top(0.0, 0.0, 0.08, 0.08, 0.06)  # 0..80 mm in u
+    cases = {
+        "two wide boxes, same height": _top(0.085, 0.0, 0.08, 0.08, 0.06),
+        "a sliver, 2 cm higher": _top(0.085, 0.0, 0.025, 0.08, 0.08),
+        "a sliver, 4 cm away": _top(0.12, 0.0, 0.025, 0.08, 0.06),
+    }
+    for name, other in cases.items():
+        uvh = np.vstack([box, other])
+        labels = np.repeat([0, 1], [len(box), len(other)])
+        assert np.array_equal(merge_split_tops(uvh, labels, 0.01, 0.035, 0.005, 0.05),
+                              labels), name
+    sliver = _top(0.085, 0.0, 0.025, 0.08, 0.06)  # 5 mm away, same height: one object
+    uvh = np.vstack([box, sliver])
+    labels = np.repeat([0, 1], [len(box), len(sliver)])
+    assert len(np.unique(merge_split_tops(uvh, labels, 0.01, 0.035, 0.005, 0.05))) == 1
