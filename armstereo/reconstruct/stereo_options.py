@@ -32,6 +32,12 @@ SEARCH_MODES = ("exact", "pruned")
 OCCLUSION_MODES = ("nan", "fill")
 POSTPROCESS_MODES = ("median", "paper", "none")
 PREFILTER_MODES = ("none", "highpass", "edges")
+SGBM_MODES = ("sgbm", "hh", "3way", "hh4")  # OpenCV's STEREO_SGBM_MODE_*
+# SGBM's sub-pixel steps (SgbmOptions; measured on the realistic cell: bench/results/sgbm_desk.md)
+SGBM_PRESMOOTH = 0.0  # px, Gaussian sigma
+SGBM_SHIFTS = 1
+SGBM_MAX_PRESMOOTH = 10.0
+SGBM_MAX_SHIFTS = 16
 
 # Defaults chosen on the benchmarks (docs/birchfield-tomasi.md, "Defaults and why")
 OCCLUSION_PENALTY = 25.0  # grey levels (the paper's)
@@ -331,8 +337,23 @@ class SgbmOptions:
     ``block_size`` (odd, px), ``uniqueness`` (percent), ``speckle_window`` (pixels, 0 = no
     speckle filter), ``speckle_range`` (disparity), ``lr_tolerance`` (pixels of left-right
     difference, negative = no check): OpenCV's ``blockSize``, ``uniquenessRatio``,
-    ``speckleWindowSize``, ``speckleRange`` and ``disp12MaxDiff``. Raises StereoError for
-    values OpenCV would refuse.
+    ``speckleWindowSize``, ``speckleRange`` and ``disp12MaxDiff``. ``mode``: OpenCV's
+    ``mode`` (:data:`SGBM_MODES`: "sgbm" 5 paths, "hh" 8 paths, "3way", "hh4").
+
+    Two sub-pixel steps around OpenCV's parabola, which locks answers to whole disparities
+    (half the answers within 1/8 px of a whole number on the demo's desk):
+
+    - ``presmooth``: sigma (px) of a Gaussian blur of both images before matching, 0 = off;
+      it takes sensor noise out and makes the cost curve smooth enough for the parabola.
+    - ``shifts``: the pair is matched ``shifts`` times, the right image moved by ``k /
+      shifts`` px (bicubic) in match ``k``, and each answer moved back; the maps are averaged
+      where they agree with the unshifted one within 1 px. The parabola's error is periodic
+      in the true disparity's fraction, so ``n`` shifts cancel its first ``n - 1`` harmonics
+      (Shimizu and Okutomi, "Precise sub-pixel estimation on area-based matching", ICCV 2001).
+      Answers only where the unshifted match answers (same density); ``shifts`` times the
+      matching time. 1 = OpenCV's answer alone.
+
+    Defaults: bench/results/sgbm_desk.md. Raises StereoError for values OpenCV would refuse.
     """
 
     method: ClassVar[str] = "sgbm"
@@ -342,10 +363,13 @@ class SgbmOptions:
     speckle_window: int = 100
     speckle_range: int = 2
     lr_tolerance: int = 1
+    mode: str = "sgbm"
+    presmooth: float = SGBM_PRESMOOTH
+    shifts: int = SGBM_SHIFTS
 
     def __post_init__(self) -> None:
         for name in ("block_size", "uniqueness", "speckle_window", "speckle_range",
-                     "lr_tolerance"):
+                     "lr_tolerance", "shifts"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int | np.integer):
                 raise StereoError(f"SGBM {name} must be a whole number, got {value!r}")
@@ -354,6 +378,15 @@ class SgbmOptions:
         for name in ("uniqueness", "speckle_window", "speckle_range"):
             if getattr(self, name) < 0:
                 raise StereoError(f"SGBM {name} must be >= 0, got {getattr(self, name)}")
+        if self.mode not in SGBM_MODES:
+            raise StereoError(f"SGBM mode={self.mode!r} is not one of {', '.join(SGBM_MODES)}")
+        if isinstance(self.presmooth, bool) or not isinstance(
+                self.presmooth, int | float | np.integer | np.floating) or not (
+                0 <= self.presmooth <= SGBM_MAX_PRESMOOTH):  # NaN too
+            raise StereoError(f"SGBM presmooth must be 0..{SGBM_MAX_PRESMOOTH} px, got "
+                              f"{self.presmooth!r}")
+        if not 1 <= self.shifts <= SGBM_MAX_SHIFTS:
+            raise StereoError(f"SGBM shifts must be 1..{SGBM_MAX_SHIFTS}, got {self.shifts}")
 
     def as_dict(self) -> dict[str, Any]:
         """Every option by name, JSON-ready: what the reports record."""
