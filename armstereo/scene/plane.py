@@ -305,8 +305,10 @@ def _above_cells(uvh: np.ndarray, cell_m: float, height_m: float,
 
 def _cell_plane(u: np.ndarray, v: np.ndarray, h: np.ndarray, cell_m: float,
                 cap: float) -> tuple[float, float, float] | None:
-    """(a, b, c) of h = a + b u + c v fit to the medians of ``cell_m`` cells (module
-    constants), or None with fewer than 3 cells."""
+    """(a, b, c) of h = a + b u + c v (plane coordinates, m) fit to the median heights of
+    the ``cell_m`` cells holding CELL_MIN_POINTS, three rounds keeping the cells within
+    CELL_SIGMAS MAD sigmas (at most ``cap``); None with fewer than 3 such cells (the last
+    fit when a later round keeps fewer)."""
     if len(h) < 3:
         return None
     iu, iv = np.floor(u / cell_m).astype(np.int64), np.floor(v / cell_m).astype(np.int64)
@@ -325,13 +327,13 @@ def _cell_plane(u: np.ndarray, v: np.ndarray, h: np.ndarray, cell_m: float,
     coef = None
     for _ in range(3):
         if np.count_nonzero(sel) < 3:
-            return coef
+            break
         A = np.column_stack([np.ones(np.count_nonzero(sel)), cu[sel], cv[sel]])
         coef = np.linalg.lstsq(A, med[sel], rcond=None)[0]
         res = med - (coef[0] + coef[1] * cu + coef[2] * cv)
         sigma = 1.4826 * float(np.median(np.abs(res[sel])))
         sel = np.abs(res) < min(cap, max(CELL_SIGMAS * sigma, 0.1 * cap))
-    return float(coef[0]), float(coef[1]), float(coef[2])
+    return None if coef is None else (float(coef[0]), float(coef[1]), float(coef[2]))
 
 
 def _combine(v: np.ndarray, rows: np.ndarray) -> np.ndarray:
