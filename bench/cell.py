@@ -188,7 +188,8 @@ def main() -> int:
              "mount file, reconstructed by both matchers with the camera as each mount sees "
              "it. `depth err` = median |relative depth error| on pixels both views see; "
              "`points` = median distance to the true surfaces; plane height = |fitted table "
-             "height - true|; 7 true objects. Ratio = true / predicted hand-eye error.", "",
+             "height - true| at the table's centre; 7 true objects. Ratio = true / predicted "
+             "hand-eye error.", "",
              *section("Issue seeds", [runs[s] for s in args.seeds])]
     if args.held_out:
         lines += section("Held-out seeds", [runs[s] for s in args.held_out])
