@@ -7,7 +7,7 @@ import logging
 from pathlib import Path
 
 from armstereo.cli import args as args_
-from armstereo.cli.matcher_flags import add_matcher_flags, matcher_from_args
+from armstereo.cli.matcher_flags import add_matcher_flags, add_sgbm_flags, matcher_from_args
 from armstereo.epipolar.selfcheck import check_pair
 from armstereo.errors import ArmstereoError, ConfigError, RecordingError, StereoError
 from armstereo.io.files import output_folder
@@ -62,6 +62,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "armstereo calibrate after the capture): its hand-eye transform, intrinsics "
                    "and vignetting replace the recorded ones")
     add_matcher_flags(p, names=("photo_check",), help_prefix="birchfield: ")
+    add_sgbm_flags(p, help_prefix="sgbm: ")
     p.set_defaults(func=run)
 
 

@@ -11,7 +11,7 @@ import cv2
 import numpy as np
 
 from armstereo.cli import args as args_
-from armstereo.cli.matcher_flags import add_matcher_flags, matcher_from_args
+from armstereo.cli.matcher_flags import add_matcher_flags, add_sgbm_flags, matcher_from_args
 from armstereo.errors import ConfigError
 from armstereo.io.disparity import DISPARITY_SUFFIXES, write_disparity
 from armstereo.io.images import colorize_disparity, write_png
@@ -44,6 +44,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_matcher_flags(p.add_argument_group("birchfield options"),
                       names=("color", "occlusions", "subpixel", "lr_check", "postprocess",
                              "photo_check", "threads"))
+    add_sgbm_flags(p.add_argument_group("sgbm options"))
     p.set_defaults(func=run)
 
 

@@ -86,6 +86,16 @@ def _thread_count(text: str) -> int:
     return validate.whole(text, "value", 1, 256)
 
 
+def _presmooth(text: str) -> float:
+    """Command-line value of SGBM's pre-smoothing sigma: 0..SGBM_MAX_PRESMOOTH px."""
+    return validate.non_negative(text, "value", "px", cap=SGBM_MAX_PRESMOOTH)
+
+
+def _shift_count(text: str) -> int:
+    """Command-line value of SGBM's shift count: 1..SGBM_MAX_SHIFTS."""
+    return validate.whole(text, "value", 1, SGBM_MAX_SHIFTS)
+
+
 _PHOTO_CHECK_HELP = ("near depth jumps, drop matches whose views differ by more than G grey "
                      "levels (against foreground fattening; for clean, evenly lit images; about "
                      "4; default 0 = off)")
@@ -363,9 +373,16 @@ class SgbmOptions:
     speckle_window: int = 100
     speckle_range: int = 2
     lr_tolerance: int = 1
-    mode: str = "sgbm"
-    presmooth: float = SGBM_PRESMOOTH
-    shifts: int = SGBM_SHIFTS
+    mode: str = field(default="sgbm", metadata=option(
+        "--sgbm-mode", "OpenCV's SGBM mode: sgbm (5 paths, default), hh (8), 3way, hh4",
+        choices=SGBM_MODES))
+    presmooth: float = field(default=SGBM_PRESMOOTH, metadata=option(
+        "--sgbm-presmooth", "blur both images by a Gaussian of this sigma first (px; against "
+        "sensor noise; the demo uses 1; default 0 = off)", type=_presmooth, metavar="PX"))
+    shifts: int = field(default=SGBM_SHIFTS, metadata=option(
+        "--sgbm-shifts", "average the matches of this many sub-pixel shifts of the right image "
+        "(against the parabola's pixel locking; the demo uses 4; N times the time; default 1)",
+        type=_shift_count, metavar="N"))
 
     def __post_init__(self) -> None:
         for name in ("block_size", "uniqueness", "speckle_window", "speckle_range",

@@ -73,6 +73,31 @@ def test_stereo_sgbm_and_options(pair, tmp_path, capsys):
     assert np.isnan(disp[:, :2]).all() and (disp[:, D0:] == D0).all()
 
 
+
+def test_stereo_sgbm_flags_are_the_librarys_options(pair, tmp_path, capsys):
+    """--sgbm-presmooth/--sgbm-shifts/--sgbm-mode give what SgbmOptions gives; a bad value is
+    one line and exit 2; the Birchfield-Tomasi flags do not change an SGBM map."""
+    from armstereo.reconstruct.sgbm import sgbm
+
+    left_path, right_path, left, right = pair
+    out = tmp_path / "sgbm.pfm"
+    code, _, _ = run_cli(capsys, "stereo", left_path, right_path, "--max-disparity", 15,
+                         "--out", out, "--method", "sgbm", "--sgbm-presmooth", 1,
+                         "--sgbm-shifts", 4, "--sgbm-mode", "hh", "--subpixel", "none")
+    assert code == 0
+    got = read_disparity(out)
+    expected = sgbm(cv2.imread(str(left_path)), cv2.imread(str(right_path)), 15,
+                    presmooth=1.0, shifts=4, mode="hh")
+    np.testing.assert_array_equal(got, expected)
+    plain = sgbm(cv2.imread(str(left_path)), cv2.imread(str(right_path)), 15)
+    assert not np.array_equal(np.nan_to_num(got), np.nan_to_num(plain))  # the flags did act
+    for bad in (("--sgbm-shifts", 0), ("--sgbm-shifts", 40), ("--sgbm-presmooth", -1),
+                ("--sgbm-mode", "fast")):
+        code, _, err = run_cli(capsys, "stereo", left_path, right_path, "--max-disparity", 15,
+                               "--out", out, "--method", "sgbm", *bad)
+        assert code == 2 and bad[0] in err and len(err.strip().splitlines()) == 1
+
+
 def test_stereo_photo_check_is_the_librarys(tmp_path, capsys):
     from tests.support.images import box_pair
 
