@@ -34,10 +34,8 @@ POSTPROCESS_MODES = ("median", "paper", "none")
 PREFILTER_MODES = ("none", "highpass", "edges")
 SGBM_MODES = ("sgbm", "hh", "3way", "hh4")  # OpenCV's STEREO_SGBM_MODE_*
 # SGBM's sub-pixel steps (SgbmOptions; measured on the realistic cell: bench/results/sgbm_desk.md)
-SGBM_PRESMOOTH = 0.0  # px, Gaussian sigma
-SGBM_SHIFTS = 1
-SGBM_MAX_PRESMOOTH = 10.0
-SGBM_MAX_SHIFTS = 16
+SGBM_PRESMOOTH, SGBM_SHIFTS = 0.0, 1  # px (Gaussian sigma); matches averaged
+SGBM_MAX_PRESMOOTH, SGBM_MAX_SHIFTS = 10.0, 16
 
 # Defaults chosen on the benchmarks (docs/birchfield-tomasi.md, "Defaults and why")
 OCCLUSION_PENALTY = 25.0  # grey levels (the paper's)
@@ -84,16 +82,6 @@ def _grey_levels(text: str) -> float:
 def _thread_count(text: str) -> int:
     """Command-line value of a thread count: 1..256."""
     return validate.whole(text, "value", 1, 256)
-
-
-def _presmooth(text: str) -> float:
-    """Command-line value of SGBM's pre-smoothing sigma: 0..SGBM_MAX_PRESMOOTH px."""
-    return validate.non_negative(text, "value", "px", cap=SGBM_MAX_PRESMOOTH)
-
-
-def _shift_count(text: str) -> int:
-    """Command-line value of SGBM's shift count: 1..SGBM_MAX_SHIFTS."""
-    return validate.whole(text, "value", 1, SGBM_MAX_SHIFTS)
 
 
 _PHOTO_CHECK_HELP = ("near depth jumps, drop matches whose views differ by more than G grey "
@@ -355,13 +343,9 @@ class SgbmOptions:
 
     - ``presmooth``: sigma (px) of a Gaussian blur of both images before matching, 0 = off;
       it takes sensor noise out and makes the cost curve smooth enough for the parabola.
-    - ``shifts``: the pair is matched ``shifts`` times, the right image moved by ``k /
-      shifts`` px (bicubic) in match ``k``, and each answer moved back; the maps are averaged
-      where they agree with the unshifted one within 1 px. The parabola's error is periodic
-      in the true disparity's fraction, so ``n`` shifts cancel its first ``n - 1`` harmonics
-      (Shimizu and Okutomi, "Precise sub-pixel estimation on area-based matching", ICCV 2001).
-      Answers only where the unshifted match answers (same density); ``shifts`` times the
-      matching time. 1 = OpenCV's answer alone.
+    - ``shifts``: the mean of ``shifts`` matches with the right image moved by ``k / shifts``
+      px (:func:`.sgbm.shift_averaged`: the parabola's periodic error cancels; Shimizu and
+      Okutomi, ICCV 2001); same density, ``shifts`` times the time. 1 = OpenCV's answer.
 
     Defaults: bench/results/sgbm_desk.md. Raises StereoError for values OpenCV would refuse.
     """
@@ -373,16 +357,16 @@ class SgbmOptions:
     speckle_window: int = 100
     speckle_range: int = 2
     lr_tolerance: int = 1
-    mode: str = field(default="sgbm", metadata=option(
-        "--sgbm-mode", "OpenCV's SGBM mode: sgbm (5 paths, default), hh (8), 3way, hh4",
-        choices=SGBM_MODES))
+    mode: str = field(default="sgbm", metadata=option("--sgbm-mode", "OpenCV's SGBM mode: "
+                      "sgbm (5 paths, default), hh (8), 3way, hh4", choices=SGBM_MODES))
     presmooth: float = field(default=SGBM_PRESMOOTH, metadata=option(
-        "--sgbm-presmooth", "blur both images by a Gaussian of this sigma first (px; against "
-        "sensor noise; the demo uses 1; default 0 = off)", type=_presmooth, metavar="PX"))
+        "--sgbm-presmooth", "blur both images by a Gaussian of this sigma first (px; the demo "
+        "uses 1; default 0 = off)", metavar="PX",
+        type=lambda t: validate.non_negative(t, "value", "px", cap=SGBM_MAX_PRESMOOTH)))
     shifts: int = field(default=SGBM_SHIFTS, metadata=option(
-        "--sgbm-shifts", "average the matches of this many sub-pixel shifts of the right image "
-        "(against the parabola's pixel locking; the demo uses 4; N times the time; default 1)",
-        type=_shift_count, metavar="N"))
+        "--sgbm-shifts", "average the matches of N sub-pixel shifts of the right image (the "
+        "demo uses 4; N times the time; default 1)", metavar="N",
+        type=lambda t: validate.whole(t, "value", 1, SGBM_MAX_SHIFTS)))
 
     def __post_init__(self) -> None:
         for name in ("block_size", "uniqueness", "speckle_window", "speckle_range",
