@@ -10,7 +10,8 @@ the mesh's mean distance to the true surfaces (accuracy), the share of the true 
 row of the same cell with every error source off but the desk (the matcher and the fusion
 alone, the camera's true mount), and the depth filter's effect
 (:mod:`armstereo.fusion.depth_filter`, on by default for Birchfield-Tomasi, off for SGBM):
-Birchfield-Tomasi without it (as fusion ran before it), SGBM with it.
+Birchfield-Tomasi without it (as fusion ran before it), SGBM with it; and Birchfield-Tomasi
+with the mesh weight threshold before it was raised to 0.05 (0.02).
 
     .venv/bin/python -m bench.cell_scan [--seeds 0 1 2 3 4] [--views ring:12]
         [--out bench/results/cell_scan.md]
@@ -53,7 +54,8 @@ NOTHING_BUT_THE_DESK = dataclasses.replace(
 ROWS = ("birchfield, calibrated", "sgbm, calibrated", "birchfield, bundled mount",
         "birchfield, nothing but the desk (true camera)",
         "birchfield, calibrated, no depth filter (as before)",
-        "sgbm, calibrated, with the depth filter")
+        "sgbm, calibrated, with the depth filter",
+        "birchfield, calibrated, mesh min weight 0.02 (before)")
 UNFILTERED = DepthFilterOptions(enabled=False)
 
 
@@ -71,9 +73,11 @@ def scan(folder: Path, profile, seed: int, mount: CameraMount, views: str) -> Pa
 
 
 def fuse(path: Path, out: Path, method: str, mount=None,
-         depth_filter: DepthFilterOptions | None = None) -> dict:
+         depth_filter: DepthFilterOptions | None = None, min_weight: float | None = None
+         ) -> dict:
     report = fuse_recording(path, out, FusionOptions(voxel=0.002, method=method, mount=mount,
-                                                     depth_filter=depth_filter))
+                                                     depth_filter=depth_filter,
+                                                     min_weight=min_weight))
     acc = report["accuracy"]
     return {"accuracy_mm": acc["accuracy_mean_mm"],
             "complete_5mm": acc["completeness_within_5mm"] * 100,
@@ -93,7 +97,9 @@ def run_seed(seed: int, views: str, folder: Path) -> dict:
            "birchfield, calibrated, no depth filter (as before)": fuse(
                path, folder / "f5", "birchfield", depth_filter=UNFILTERED),
            "sgbm, calibrated, with the depth filter": fuse(
-               path, folder / "f6", "sgbm", depth_filter=DepthFilterOptions())}
+               path, folder / "f6", "sgbm", depth_filter=DepthFilterOptions()),
+           "birchfield, calibrated, mesh min weight 0.02 (before)": fuse(
+               path, folder / "f7", "birchfield", min_weight=0.02)}
     true = cell_camera(NOTHING_BUT_THE_DESK, seed, CameraMount.load(None)).mount
     desk = scan(folder, dataclasses.replace(NOTHING_BUT_THE_DESK, name="desk"), seed, true,
                 views)

@@ -66,10 +66,14 @@ TRUNC_VOXELS = 4  # default truncation: 4 voxels (8 mm at 2 mm), about 3 sigma o
 BEHIND_TRUNC = 0.5
 SUPPORT_TOLERANCE_TRUNC = 0.25
 DEFAULT_MIN_VIEWS = 2
-# Weight a meshed cube's corners need with the depth filter's inverse-variance weights: 0.02 is
-# one observation of ~7 mm rms, worse than the 5 mm completeness tolerance (realistic cell,
-# seed 0: 1.54 -> 1.34 mm for 1 point of completeness). Without the filter: 1.0, one view.
-DEFAULT_MIN_WEIGHT = 0.02
+# Weight a meshed cube's corners need with the depth filter's inverse-variance weights. The
+# summed weight W predicts the fused surface's error, about sigma0 / sqrt(W) rms (realistic
+# cell, Birchfield-Tomasi: mean error 2.5-2.9 mm at W 0.05-0.1, 1.2-1.5 mm at 0.2-0.5, 0.2 mm
+# above 3). 0.05 keeps surface predicted within ~4.5 mm rms, inside the 5 mm completeness
+# tolerance; 0.02 (~7 mm) kept the table's few-view borders, whose 2-4 mm blobs made a third of
+# the mean error (seeds 0-4: 1.18 -> 0.96 mm, 98.2 -> 96.7 % complete; held-out seeds in
+# bench/results/cell_scan_heldout.md). Without the filter: 1.0, one view.
+DEFAULT_MIN_WEIGHT = 0.05
 RAW_POINTS_PER_PAIR = 30_000  # raw points kept per pair (random subset): ROI and raw scoring
 METADATA_SCENE_TRUTH = "scene_truth"
 DEPTH_SOURCES = ("stereo", "truth")
@@ -96,7 +100,8 @@ class FusionOptions:
     mount instead of the recorded one (:mod:`armstereo.recording.remount`; its vignetting then
     applies); ``depth_filter`` how each depth map is weighted and fitted before fusion
     (:mod:`armstereo.fusion.depth_filter`; ``DepthFilterOptions(enabled=False)`` fuses the
-    depth as matched, weight 1 per pixel; None: :attr:`filter_options`, by matcher);
+    depth as matched, weight 1 per pixel; None: :attr:`filter_options`, by matcher, off for
+    exact depth);
     ``min_weight`` the observation weight a mesh cube's corners need (None:
     DEFAULT_MIN_WEIGHT with the filter, 1.0 = one observation without)."""
 
@@ -133,9 +138,14 @@ class FusionOptions:
 
     @property
     def filter_options(self) -> DepthFilterOptions:
-        """``depth_filter``, or the matcher's default (:func:`default_filter`)."""
-        return self.depth_filter if self.depth_filter is not None else default_filter(
-            self.method)
+        """``depth_filter``, or by default: off for exact depth (``depth_source`` truth: the
+        plane fit only blurs its edges; realistic cell seeds 0-2, 0.16 -> 0.12 mm), else the
+        matcher's default (:func:`default_filter`)."""
+        if self.depth_filter is not None:
+            return self.depth_filter
+        if self.depth_source == "truth":
+            return DepthFilterOptions(enabled=False)
+        return default_filter(self.method)
 
     @property
     def mesh_min_weight(self) -> float:

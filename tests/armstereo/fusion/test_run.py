@@ -13,8 +13,9 @@ from armstereo.evaluation.scene_truth import SceneTruth
 from armstereo.fusion.depth_filter import DepthFilterOptions
 from armstereo.fusion.foxglove import TOPIC_MESH, TOPIC_POINTS, TOPIC_TF, TOPIC_VIEWS
 from armstereo.fusion.mesh_ply import read_mesh_ply
+from armstereo.fusion.mesh import extract_mesh
 from armstereo.fusion.run import DEFAULT_MIN_WEIGHT, FusionOptions, fuse_recording
-from armstereo.fusion.tsdf import Roi
+from armstereo.fusion.tsdf import DepthFrame, Roi, TsdfVolume
 from armstereo.io.ply import read_ply
 from armstereo.reconstruct.stereo_options import BirchfieldOptions, SgbmOptions
 from armstereo.recording import Recording, RecordingWriter
@@ -111,6 +112,17 @@ def test_truth_can_be_given_and_is_optional(scan, tmp_path):
     report = fuse_recording(scan, tmp_path / "a", options, truth=truth)
     assert report["accuracy"]["accuracy_mean_mm"] < 0.5  # exact depth
     assert report["depth_source"] == "truth"
+    assert report["depth_filter"]["enabled"] is False and report["mesh_min_weight"] == 1.0
+
+
+def test_exact_depth_is_fused_unfiltered_by_default():
+    # the plane fit has no noise to remove from exact depth, it only rounds its edges
+    # (realistic cell seeds 0-2: 0.16 mm fused with the filter, 0.12 mm without)
+    assert not FusionOptions(depth_source="truth").filter_options.enabled
+    assert FusionOptions(depth_source="truth").mesh_min_weight == 1.0
+    given = DepthFilterOptions(window=11)
+    assert FusionOptions(depth_source="truth", depth_filter=given).filter_options is given
+    assert FusionOptions(depth_source="stereo").filter_options.enabled
 
 
 def test_recording_without_pairs_is_a_recording_error(tmp_path):
@@ -152,6 +164,34 @@ def test_the_mesh_weight_rule_follows_the_depth_filter():
     assert FusionOptions().mesh_min_weight == DEFAULT_MIN_WEIGHT < 1.0
     assert FusionOptions(depth_filter=DepthFilterOptions(enabled=False)).mesh_min_weight == 1.0
     assert FusionOptions(min_weight=0.5).mesh_min_weight == 0.5
+
+
+def _flat_views(rms_mm: tuple[float, ...]) -> TsdfVolume:
+    """A volume fed one exact view of the plane z = 0 per entry of ``rms_mm``, each pixel
+    weighted as the depth filter weights depth of that local rms (sigma0 1 mm)."""
+    sigma0 = DepthFilterOptions().sigma0
+    volume = TsdfVolume(Roi((-0.05, -0.05, -0.05), (0.05, 0.05, 0.05)), 0.005, 0.0125)
+    T = np.eye(4)
+    T[:3, :3] = np.diag([1.0, -1.0, -1.0])  # looking down
+    T[2, 3] = 0.5
+    K = np.array([[100.0, 0, 99.5], [0, 100.0, 79.5], [0, 0, 1]])
+    for rms in rms_mm:
+        w = sigma0**2 / (sigma0**2 + (rms / 1000) ** 2)
+        volume.integrate(DepthFrame(np.full((160, 200), 0.5, np.float32), K, T,
+                                    weight=np.full((160, 200), w, np.float32)))
+    return volume
+
+
+def test_the_mesh_keeps_surface_predicted_within_the_completeness_tolerance():
+    # summed inverse-variance weight W predicts sigma0 / sqrt(W) rms: a surface seen once at
+    # 6 mm rms (worse than the 5 mm completeness tolerance) is left out, once at 4 mm or twice
+    # at 6 mm (4.2 mm fused) kept. With the old 0.02 the 6 mm view was meshed: on the
+    # realistic cell such surface made a third of the mean error (bench/results/cell_scan.md)
+    min_weight = FusionOptions().mesh_min_weight
+    assert len(extract_mesh(_flat_views((6.0,)), min_weight)) == 0
+    assert len(extract_mesh(_flat_views((4.0,)), min_weight)) > 0
+    assert len(extract_mesh(_flat_views((6.0, 6.0)), min_weight)) > 0
+    assert len(extract_mesh(_flat_views((6.0,)), 0.02)) > 0
 
 
 def test_the_depth_filter_is_on_for_birchfield_and_off_for_sgbm_by_default():
