@@ -12,8 +12,8 @@ from armstereo.errors import ConfigError, RecordingError
 from armstereo.evaluation.scene_truth import SceneTruth
 from armstereo.fusion.depth_filter import DepthFilterOptions
 from armstereo.fusion.foxglove import TOPIC_MESH, TOPIC_POINTS, TOPIC_TF, TOPIC_VIEWS
-from armstereo.fusion.mesh_ply import read_mesh_ply
 from armstereo.fusion.mesh import extract_mesh
+from armstereo.fusion.mesh_ply import read_mesh_ply
 from armstereo.fusion.run import DEFAULT_MIN_WEIGHT, FusionOptions, fuse_recording
 from armstereo.fusion.tsdf import DepthFrame, Roi, TsdfVolume
 from armstereo.io.ply import read_ply
