@@ -66,13 +66,10 @@ TRUNC_VOXELS = 4  # default truncation: 4 voxels (8 mm at 2 mm), about 3 sigma o
 BEHIND_TRUNC = 0.5
 SUPPORT_TOLERANCE_TRUNC = 0.25
 DEFAULT_MIN_VIEWS = 2
-# Weight a meshed cube's corners need with the depth filter's inverse-variance weights. The
-# summed weight W predicts the fused surface's error, about sigma0 / sqrt(W) rms (realistic
-# cell, Birchfield-Tomasi: mean error 2.5-2.9 mm at W 0.05-0.1, 1.2-1.5 mm at 0.2-0.5, 0.2 mm
-# above 3). 0.05 keeps surface predicted within ~4.5 mm rms, inside the 5 mm completeness
-# tolerance; 0.02 (~7 mm) kept the table's few-view borders, whose 2-4 mm blobs made a third of
-# the mean error (seeds 0-4: 1.18 -> 0.96 mm, 98.2 -> 96.7 % complete; held-out seeds in
-# bench/results/cell_scan_heldout.md). Without the filter: 1.0, one view.
+# Weight a meshed cube's corners need with the depth filter's weights: the summed weight W
+# predicts the fused error, ~sigma0 / sqrt(W) rms; 0.05 keeps surface within ~4.5 mm rms (the
+# 5 mm completeness tolerance); 0.02 (~7 mm) kept the table's few-view borders, a third of the
+# mean error (seeds 0-4: 1.18 -> 0.96 mm, 98.2 -> 96.7 %; docs/fusion.md). No filter: 1.0.
 DEFAULT_MIN_WEIGHT = 0.05
 RAW_POINTS_PER_PAIR = 30_000  # raw points kept per pair (random subset): ROI and raw scoring
 METADATA_SCENE_TRUTH = "scene_truth"
