@@ -63,6 +63,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    default=DEFAULTS.cluster_voxel_m,
                    metavar="M", help="voxel edge that links points into one object "
                    f"(m, default {DEFAULTS.cluster_voxel_m})")
+    p.add_argument("--flat-min-area", type=args_.non_negative("m^2", cap=10.0),
+                   default=DEFAULTS.flat_min_area_m2, metavar="M2",
+                   help="smallest sheet lying on the table (paper, a mat) reported as a flat "
+                   f"object (m^2, default {DEFAULTS.flat_min_area_m2:g}; 0: none)")
     p.add_argument("--truth", default=None, metavar="TRUTH.json", type=args_.input_file,
                    help="scene truth JSON to score against (default: the recording's "
                    f"'{TRUTH_METADATA_KEY}' metadata, if any); writes scene_score.json")
@@ -85,7 +89,8 @@ def run(args: argparse.Namespace) -> int:
     options = SceneOptions(up=parse_up(args.up), max_tilt_deg=args.max_tilt,
                            plane_threshold_m=args.plane_threshold, min_height_m=args.min_height,
                            min_size_m=args.min_size, cluster_voxel_m=args.cluster_voxel,
-                           cell_m=args.cell, occupancy_cell_m=args.occupancy_cell)
+                           cell_m=args.cell, occupancy_cell_m=args.occupancy_cell,
+                           flat_min_area_m2=args.flat_min_area)
     options.check()
     truth = _truth(args.truth)
     cloud = load_cloud(path)

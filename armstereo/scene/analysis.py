@@ -33,7 +33,9 @@
    objects side by side at the same height, one of them a sliver, become one
    (:func:`.cluster.merge_split_tops`, ``merge_split_tops``: a glossy top cut in two);
 3. ``objects``: a gravity-aligned box, model, colour and texture per group (:mod:`.objects`,
-   :mod:`.appearance`);
+   :mod:`.appearance`); then the flat objects, sheets below the object band found in step 1
+   from table cells' medians (:mod:`.flat`, ``flat_min_area_m2``; the plane is refit
+   without them, since a sheet lifts the cell refit);
 4. ``height_map`` and ``occupancy`` (:mod:`.heightmap`); objects that touch unobserved space
    reaching the edge of the map are flagged ``partial`` (cut by the field of view: their size
    and centre describe the visible part only).
@@ -61,8 +63,9 @@ from armstereo.scene.cluster import (
     split_valleys,
     voxel_clusters,
 )
+from armstereo.scene.flat import flat_regions
 from armstereo.scene.heightmap import HeightMap, Occupancy, height_map, occupancy
-from armstereo.scene.objects import ObjectShape, measure_shape
+from armstereo.scene.objects import ObjectShape, footprint_rectangle, measure_shape
 from armstereo.scene.plane import (
     SupportPlane,
     fit_support_plane,
@@ -128,6 +131,13 @@ class SceneOptions:
     # objects side by side at the same height, one of them a sliver, are one object cut in
     # two (a glossy top's lost highlight; False: never merged)
     merge_split_tops: bool = True
+    # flat objects (sheets below the object band, :mod:`.flat`): connected cells of
+    # flat_cell_m whose median stands flat_height_m or more above the table, at least
+    # flat_margin_m from anything in the band, covering flat_min_area_m2 (0: off)
+    flat_min_area_m2: float = 0.01
+    flat_height_m: float = 0.001
+    flat_cell_m: float = 0.02
+    flat_margin_m: float = 0.03
     seed: int = 0
 
     def check(self) -> None:
@@ -145,7 +155,7 @@ class SceneOptions:
             if int(getattr(self, name)) < 1:
                 raise ConfigError(f"scene option {name} must be at least 1")
         for name in ("gate_cell_m", "gate_height_m", "split_neck_m", "plane_cell_m",
-                     "plane_margin_m"):
+                     "plane_margin_m", "flat_min_area_m2", "flat_height_m", "flat_margin_m"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
                 raise ConfigError(f"scene option {name} must be a non-negative number, got "
@@ -154,6 +164,10 @@ class SceneOptions:
             if not isinstance(getattr(self, name), bool):
                 raise ConfigError(f"scene option {name} must be true or false, got "
                                   f"{getattr(self, name)!r}")
+        if self.flat_min_area_m2 > 0 and not (math.isfinite(self.flat_cell_m)
+                                              and self.flat_cell_m > 0):
+            raise ConfigError("scene option flat_cell_m must be positive when flat objects are "
+                              "searched (flat_min_area_m2 > 0)")
         if self.gate_height_m > 0 and self.gate_cell_m <= 0:
             raise ConfigError("scene option gate_cell_m must be positive when the gate is on")
         if self.occupancy_cell_m < self.cell_m:
@@ -255,6 +269,16 @@ def analyze_scene(cloud: SceneCloud, options: SceneOptions = SceneOptions()) -> 
                                   threshold_m=options.plane_threshold_m, up=options.up,
                                   max_tilt_deg=options.max_tilt_deg)
     uvh = plane.to_plane(cloud.points)
+    flats = _flat_regions(uvh, options)
+    if flats and options.plane_cell_m > 0:  # a sheet lifts the cell refit: refit without it
+        skip = np.zeros(len(uvh), dtype=bool)
+        skip[np.concatenate(flats)] = True
+        plane = refine_from_cells(cloud.points, fitted, cell_m=options.plane_cell_m,
+                                  margin_m=options.plane_margin_m,
+                                  threshold_m=options.plane_threshold_m, up=options.up,
+                                  max_tilt_deg=options.max_tilt_deg, exclude=skip)
+        uvh = plane.to_plane(cloud.points)
+        flats = _flat_regions(uvh, options)
     # which points stand above the table is decided about the point refit (module doc, step 2)
     seg = uvh if plane is fitted else fitted.to_plane(cloud.points)
     timings["plane"] = time.perf_counter() - t0
@@ -312,6 +336,10 @@ def analyze_scene(cloud: SceneCloud, options: SceneOptions = SceneOptions()) -> 
         partial = _touches(hmap, outside, uvh[idx, :2])
         objects.append(_scene_object(len(objects), shape, plane, uvh[idx][shape.kept],
                                      colors, partial))
+    for idx in flats:
+        colors = None if cloud.colors_bgr is None else cloud.colors_bgr[idx]
+        objects.append(_scene_object(len(objects), _flat_shape(uvh[idx]), plane, uvh[idx],
+                                     colors, _touches(hmap, outside, uvh[idx, :2])))
     timings["objects"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -352,6 +380,23 @@ def _object_shapes(labels: np.ndarray, above: np.ndarray, n_core: int, uvh: np.n
             continue
         accepted.append((k, idx, shape))
     return accepted, rejected
+
+
+def _flat_regions(uvh: np.ndarray, options: SceneOptions) -> list[np.ndarray]:
+    """The flat objects' point indices (:func:`.flat.flat_regions`; none when off)."""
+    if options.flat_min_area_m2 <= 0:
+        return []
+    return flat_regions(uvh, cell_m=options.flat_cell_m, height_m=options.flat_height_m,
+                        band_m=options.plane_threshold_m, margin_m=options.flat_margin_m,
+                        min_area_m2=options.flat_min_area_m2)
+
+
+def _flat_shape(uvh: np.ndarray) -> ObjectShape:
+    """A flat object's box: the minimum-area rectangle of its points, the median height
+    (a sheet's top is its heights' only level; their spread is the table's noise)."""
+    (cu, cv), length, width, angle = footprint_rectangle(uvh[:, :2])
+    return ObjectShape((cu, cv), length, width, angle, float(np.median(uvh[:, 2])), "box",
+                       "flat", None, np.ones(len(uvh), dtype=bool), (length, width))
 
 
 def _cell_median_above(uvh: np.ndarray, cell_m: float, height_m: float) -> np.ndarray:

@@ -230,7 +230,8 @@ def _refit(pts: np.ndarray, n: np.ndarray, d: float, threshold_m: float, up_v: n
 
 def refine_from_cells(points: np.ndarray, plane: SupportPlane, *, cell_m: float = 0.03,
                       margin_m: float = 0.01, threshold_m: float = 0.005, up=(0.0, 0.0, 1.0),
-                      max_tilt_deg: float = 10.0) -> SupportPlane:
+                      max_tilt_deg: float = 10.0,
+                      exclude: np.ndarray | None = None) -> SupportPlane:
     """``plane`` refit to the median heights of ``cell_m`` cells of table (base frame, m).
 
     1 cm cells (:data:`EXCLUDE_CELL_M`) whose median height above ``plane`` clears
@@ -240,7 +241,8 @@ def refine_from_cells(points: np.ndarray, plane: SupportPlane, *, cell_m: float 
     :data:`CELL_SAMPLE`) are binned into ``cell_m`` cells in plane
     coordinates; the plane h = a + b u + c v is fit by least squares to the cells' (mean u,
     mean v, median h), keeping the cells within :data:`CELL_SIGMAS` MAD sigmas of it, and the
-    whole is repeated :data:`CELL_ROUNDS` times about the new plane. ``rms_m``, ``inliers``
+    whole is repeated :data:`CELL_ROUNDS` times about the new plane. Points marked in
+    ``exclude`` (N,) bool are left out too (flat objects, :mod:`.flat`). ``rms_m``, ``inliers``
     and the hull are those of the points within the original refit band of the new plane, as
     for :func:`fit_support_plane`. Returns ``plane`` unchanged when fewer than 3 cells remain.
     """
@@ -250,7 +252,8 @@ def refine_from_cells(points: np.ndarray, plane: SupportPlane, *, cell_m: float 
     R, t = plane.T_base_plane[:3, :3], plane.T_base_plane[:3, 3]
     rel = cols - t[:, None]
     uvh = np.stack([_combine(R[:, 0], rel), _combine(R[:, 1], rel), _combine(R[:, 2], rel)])
-    keep = np.flatnonzero(~_above_cells(uvh, EXCLUDE_CELL_M, threshold_m, margin_m))
+    left_out = _above_cells(uvh, EXCLUDE_CELL_M, threshold_m, margin_m)
+    keep = np.flatnonzero(~left_out if exclude is None else ~(left_out | exclude))
     # a fixed stride: a 3 cm cell of the realistic desk holds ~1000 table points, a few
     # hundred give its median to a fraction of the table's correlated error
     kept = cols[:, keep[::max(1, len(keep) // CELL_SAMPLE)]]

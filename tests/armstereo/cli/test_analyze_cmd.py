@@ -55,6 +55,21 @@ def test_truth_file_scores_the_analysis(ply, tmp_path, capsys):
     assert score["worst"]["center_error_m"] < 0.002
 
 
+def test_flat_min_area_finds_a_sheet_and_zero_switches_it_off(tmp_path, capsys):
+    from armstereo.evaluation.scene_truth import SceneTruth
+    from armstereo.scene.synthetic import box, table
+    truth = SceneTruth([table(), box("sheet", 0.05, 0.0, 0.2, 0.14, 0.002)], "table")
+    cloud = scan(truth, spacing=0.002, noise=0.0015)
+    path = write_ply(tmp_path / "sheet.ply", cloud.points, cloud.colors_bgr)
+    found = []
+    for extra in ([], ["--flat-min-area", "0"]):
+        assert main(["analyze", str(path), "--out", str(tmp_path / "s"), "--json", *extra]) == 0
+        found.append(json.loads(capsys.readouterr().out)["objects"])
+    assert len(found[0]) == 1 and found[0][0]["top"] == "flat" and found[1] == []
+    assert main(["analyze", str(path), "--out", str(tmp_path), "--flat-min-area", "-1"]) == 2
+    assert "--flat-min-area" in capsys.readouterr().err
+
+
 def test_recording_metadata_truth_is_used(tmp_path, capsys):
     cloud = scan(default_truth(), spacing=0.003)
     rec = tmp_path / "r.mcap"
