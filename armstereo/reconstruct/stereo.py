@@ -56,6 +56,7 @@ from armstereo.reconstruct.rejection import (
     photo_inconsistent,
     reject_invalid_partners,
 )
+from armstereo.reconstruct.saturation import saturation_codes
 from armstereo.reconstruct.sgbm import sgbm
 from armstereo.reconstruct.speckles import remove_speckles
 from armstereo.reconstruct.stereo_inputs import (
@@ -175,6 +176,7 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int,
         # the photo-consistency check reads the grey images, the sub-pixel steps the
         # normalised ones (the views' brightness may differ) without the edges
         gray = o.color == "gray"
+        saturated = _saturated(left, right, o)  # what the recorded levels were, before
         if o.equalize and gray:
             left, right = _equalized(left, right, lmask, rmask, o, min_disparity,
                                      max_disparity, pool)
@@ -191,14 +193,15 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int,
         # a shifted copy of the other view's, and its Sobel sees the image border
         sub = inputs.base if o.prefilter == "edges" else (gl, gr)
         matched = ((gl[:, :, None], gr[:, :, None]) if o.color == "gray" else (left, right))
-        idx, _ = _match(*matched, lmask, rmask, textured=textured_l, pool=pool, **params)
+        idx, _ = _match(*matched, lmask, rmask, textured=textured_l, pool=pool,
+                        saturated=saturated, **params)
         masked, reject = masked_map(
             pool, strips, *sub, idx, min_disparity, fast=o.subpixel == "fast",
             median=o.postprocess == "median", flat=inputs.flat, columns=o.column_support,
             hidden=o.occlusion_margin if o.occlusions == "nan" else None, plain=o.plain_fill)
         if o.lr_check:
             _reject_right_to_left(masked, reject, idx, matched, (lmask, rmask), grey_r, o,
-                                  min_disparity, pool, params)
+                                  min_disparity, pool, params, saturated)
         disp = masked
         disp += np.float32(min_disparity)
         disp = _finish(disp, (grey_l, grey_r), sub, rmask, o, min_disparity, max_disparity,
@@ -219,6 +222,19 @@ def _equalized(left, right, lmask, rmask, o: BirchfieldOptions, dmin: int,
 
     grey_r = equalize(grey_l, grey_r, lmask, rmask, dmin, max_disparity, first_pass)
     return grey_l[:, :, None], grey_r[:, :, None]
+
+
+def _saturated(left: np.ndarray, right: np.ndarray, o: BirchfieldOptions
+               ) -> tuple[np.ndarray, int] | None:
+    """``(codes, slack)`` of the pair's saturated pixels (:mod:`.saturation`) when the
+    programme compares grey levels (with or without the edge prefilter, whose Sobel reads the
+    neighbours and adds up to ``edge_cap``: ``slack`` in doubled grey levels), else None."""
+    if (not o.censor_saturated or o.color != "gray" or o.prefilter == "highpass"
+            or o.normalize_window):
+        return None
+    edges = o.prefilter == "edges"
+    codes = saturation_codes(grey(left), grey(right), neighbours=edges)
+    return None if codes is None else (codes, 2 * int(round(o.edge_cap)) if edges else 0)
 
 
 def _brightness_blind(grey_l, grey_r, max_disparity, dmin, lmask, rmask, threads, pool
@@ -263,7 +279,7 @@ def _kernel_params(o: BirchfieldOptions, left: np.ndarray, dmin: int, max_dispar
 
 
 def _reject_right_to_left(masked, reject, idx, matched, masks, grey_r, o, dmin, pool,
-                          params) -> None:
+                          params, saturated=None) -> None:
     """The left-right check: match the mirrored, swapped pair (its "left" is the mirrored
     right image) and reject (in ``masked``/``reject``) the left answers more than one pixel
     from the right view's."""
@@ -271,7 +287,9 @@ def _reject_right_to_left(masked, reject, idx, matched, masks, grey_r, o, dmin, 
     textured_r = rewarded(texture_strength(grey_r), o.reward_texture)
     idx_r, state_r = _match(mr[:, ::-1], ml[:, ::-1], rmask[:, ::-1], lmask[:, ::-1],
                             textured=None if textured_r is None else textured_r[:, ::-1],
-                            pool=pool, **params)
+                            pool=pool, saturated=None if saturated is None else (
+                                np.ascontiguousarray(saturated[0][::-1, :, ::-1]),
+                                saturated[1]), **params)
     idx_r = np.where(state_r >= BORDER, -1, idx_r)
     idx_r = np.ascontiguousarray(idx_r[:, ::-1])
     add_rejections(masked, reject, left_right_mismatch(np.where(reject, -1, idx), idx_r,
@@ -300,10 +318,12 @@ def _finish(disp, greys, sub, rmask, o: BirchfieldOptions, dmin: int, max_dispar
 
 
 def _match(left, right, lmask, rmask, *, dmin, nd, occ, rew, combine_max, mode, threads,
-           rx, ry, slant, aggregated, paper_postprocess, smooth=None, textured=None, pool=None):
+           rx, ry, slant, aggregated, paper_postprocess, smooth=None, textured=None, pool=None,
+           saturated=None):
     """Scanline matching (+ the paper's postprocessing) -> ``(index, state)``: int32 window
     indices (-1 = no match) and the pixel states of :mod:`.birchfield.common.states`; the
-    default matcher runs on ``pool``'s threads (None: its own)."""
+    default matcher runs on ``pool``'s threads (None: its own). ``saturated``: censored
+    pixels (:func:`_saturated`), for the window-summed programme only."""
     lm = np.ascontiguousarray(left)
     rm = np.ascontiguousarray(right)
     lk, rk = np.ascontiguousarray(lmask), np.ascontiguousarray(rmask)
@@ -317,7 +337,8 @@ def _match(left, right, lmask, rmask, *, dmin, nd, occ, rew, combine_max, mode, 
         # paper's postprocessing needs the dense map first
         out = match_image_aggregated(lm[:, :, 0], rm[:, :, 0], lk, rk, dmin, nd, occ, rew, rx,
                                      ry, slant=slant, textured=textured, threads=threads,
-                                     pool=pool, keep_unmatched=paper_postprocess)
+                                     pool=pool, keep_unmatched=paper_postprocess,
+                                     saturated=saturated)
         if not paper_postprocess:
             return out["disp"], out["state"]
         idx, state = out["disp"], out["state"]

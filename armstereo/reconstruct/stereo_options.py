@@ -70,8 +70,8 @@ CLEAN_PHOTO_CHECK = 4.0
 PAPER_OPTIONS = dict(cost_window=(1, 1), slant_penalty=None, postprocess="paper",
                      texture_threshold=0.0, reward_texture=0.0, speckle_size=0,
                      subpixel="none", occlusions="fill", column_support=False,
-                     consensus_size=0, prefilter="none", match_reward=5,
-                     normalize_window=0, equalize=False, plain_fill=None)
+                     consensus_size=0, prefilter="none", match_reward=5, normalize_window=0,
+                     equalize=False, plain_fill=None, censor_saturated=False)
 
 
 def _grey_levels(text: str) -> float:
@@ -130,15 +130,14 @@ class BirchfieldOptions:
     - ``speckle_size``/``speckle_range``: NaN on connected regions of fewer than
       ``speckle_size`` pixels whose disparity differs by more than ``speckle_range`` pixels
       from their surroundings (OpenCV's ``filterSpeckles``, as SGBM does); 0 = off.
-    - ``postprocess``: ``"median"`` (True): 5x5 median of the sub-pixel map; ``"paper"``:
-      the paper's propagation across scanlines and mode filters; ``"none"`` (False). Stored
-      as the name.
+    - ``postprocess``: ``"median"`` (True): 5x5 median of the sub-pixel map; ``"paper"``: the
+      paper's propagation across scanlines, mode filters; ``"none"`` (False). Stored by name.
     - ``subpixel``: ``"fast"``: one Lucas-Kanade step over a 5x5 window, each pixel at its own
       disparity (:func:`.subpixel.gradient_step`); ``"gradient"`` (iterated, over a window of
       the same surface) or ``"parabola"`` (windowed SSD at d-1, d, d+1), both with a
       ``2 * subpixel_radius + 1`` window; ``"none"``.
-    - ``search``: ``"exact"`` solves each scanline's programme exactly in O(width x
-      disparities); ``"pruned"`` is the reference code's heuristic search (about 18x slower).
+    - ``search``: ``"exact"`` solves each scanline's programme exactly (O(width x
+      disparities)); ``"pruned"``: the reference code's heuristic search (18x slower).
     - ``color``: ``"gray"`` matches the BGR2GRAY image; ``"sum"``/``"max"`` combine
       per-channel dissimilarities. ``"pruned"``, ``"sum"`` and ``"max"`` run the paper's
       single-pixel kernels: ``cost_window`` and ``slant_penalty`` do not apply.
@@ -146,13 +145,13 @@ class BirchfieldOptions:
       a nearer pixel (their right-image position at least ``occlusion_margin`` pixels right
       of that of a pixel right of them, :func:`.rejection.hidden_by_nearer`); ``"fill"`` keeps
       the paper's background fill.
-    - ``lr_check``: also match right-to-left (mirrored pair) and reject disparities that differ
-      by more than one pixel. Matching takes twice as long.
-    - ``threads``: the steps run on this many threads (None: ``numba.get_num_threads()``):
-      the matching on chunks of rows the threads take in turn, the others on strips of rows
-      side by side (:mod:`.strips`, :mod:`.speckles`); the result does not depend on it. A
-      second thread pays on camera-sized images (1.5-1.9x at 0.3-1.5 megapixels), much less
-      on small ones (bench/results/stereo_scaling.md).
+    - ``lr_check``: also match right-to-left (mirrored pair), reject disparities differing
+      by more than one pixel (twice the time).
+    - ``threads``: the steps run on this many threads (None: ``numba.get_num_threads()``),
+      on chunks or strips of rows; the result does not depend on it (a second thread: 1.5-1.9x
+      at 0.3-1.5 megapixels, much less on small images, bench/results/stereo_scaling.md).
+    - ``censor_saturated``: a pixel with a channel at 255 (0) was at least (at most) that
+      bright: its dissimilarity interval is opened on that side (:mod:`.saturation`). Grey.
     - ``prefilter``: ``"edges"`` matches ``I + clip(Sobel_x(I), -edge_cap, edge_cap)`` of
       each grey image (3x3 horizontal Sobel, saturated to uint8; :func:`.stereo_inputs.with_edges`):
       the dissimilarity then also compares the images' horizontal gradients, as SGBM's
@@ -226,6 +225,7 @@ class BirchfieldOptions:
     prefilter_gain: float = PREFILTER_GAIN
     edge_cap: float = EDGE_CAP
     equalize: bool = True
+    censor_saturated: bool = True
     normalize_window: int = NORMALIZE_WINDOW
     normalize_floor: float = NORMALIZE_FLOOR
     normalize_scale: float = NORMALIZE_SCALE

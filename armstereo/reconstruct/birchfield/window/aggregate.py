@@ -53,6 +53,7 @@ from armstereo.reconstruct.birchfield.window.lanes import (
     lane_backtrack,
     lane_forward,
 )
+from armstereo.reconstruct.saturation import open_bounds
 
 # rows cost unequal amounts: threads that take small chunks finish together, but a chunk's
 # set-up costs 0.3-0.5 ms however small it is (bench/results/stereo_scaling.md)
@@ -86,8 +87,9 @@ def fill_outside(grey: np.ndarray, mask: np.ndarray) -> np.ndarray:
 def match_image_aggregated(left: np.ndarray, right: np.ndarray, lmask: np.ndarray,
                            rmask: np.ndarray, dmin: int, nd: int, occ: int, rew: int, rx: int,
                            ry: int, *, slant: int = -1, textured: np.ndarray | None = None,
-                           threads: int = 1, pool=None,
-                           keep_unmatched: bool = True) -> dict[str, np.ndarray]:
+                           threads: int = 1, pool=None, keep_unmatched: bool = True,
+                           saturated: tuple[np.ndarray, float] | None = None
+                           ) -> dict[str, np.ndarray]:
     """Match (H, W) uint8 grey images on ``(2 ry + 1) x (2 rx + 1)`` aggregated costs.
 
     ``lmask``/``rmask``: (H, W) bool validity; the window is ``[dmin, dmin + nd - 1]``;
@@ -101,7 +103,10 @@ def match_image_aggregated(left: np.ndarray, right: np.ndarray, lmask: np.ndarra
     the calling thread and ``threads - 1`` of ``pool``'s (a ThreadPoolExecutor with that many
     workers; None: a pool of its own). ``keep_unmatched=False``: ``disp`` is -1 wherever
     ``state`` is BORDER or INVALID too (what a caller that does not fill them would do next,
-    here chunk by chunk on the threads).
+    here chunk by chunk on the threads). ``saturated``: ``(codes, slack)`` of
+    :func:`armstereo.reconstruct.saturation.saturation_codes` (left and right, (2, H, W)),
+    whose pixels' intervals are opened (:func:`~armstereo.reconstruct.saturation.open_bounds`;
+    None: none).
     """
     H, W = left.shape
     npix = (2 * rx + 1) * (2 * ry + 1)
@@ -109,7 +114,7 @@ def match_image_aggregated(left: np.ndarray, right: np.ndarray, lmask: np.ndarra
     out = dict(disp=np.empty((H, W), np.int32), state=np.empty((H, W), np.uint8))
     if textured is None:
         textured = np.ones((H, W), np.bool_)
-    images = (left, right, lmask, rmask, np.asarray(textured, np.bool_))
+    images = (left, right, lmask, rmask, np.asarray(textured, np.bool_), saturated)
     params = (dmin, nd, rx, ry, q, _scaled_penalties(occ, rew, slant, npix, q),
               keep_unmatched)
     threads = max(1, threads)
@@ -149,7 +154,7 @@ def _match_chunks(todo, images: tuple, params: tuple, out: dict) -> None:
     iterator ``todo`` until none is left: every step reads the images' rows it needs (the
     window's ``ry`` more each side) and writes only the chunk's rows of ``out``, so chunks
     can run side by side and give the maps of one pass over the image."""
-    left, right, lmask, rmask, textured = images
+    left, right, lmask, rmask, textured, saturated = images
     dmin, nd, rx, ry, q, pens, keep_unmatched = params
     work = _lane_work(left.shape[1], nd, rx, ry)
     for first, stop in todo:  # a list iterator: its next() is atomic under the GIL
@@ -159,6 +164,9 @@ def _match_chunks(todo, images: tuple, params: tuple, out: dict) -> None:
         bounds = np.empty((6, left.shape[1], nj), np.float32)
         image_bounds(*(_rows_transposed(img, mask, ry, first, stop, nj)
                        for img, mask in ((left, lmask), (right, rmask))), bounds)
+        if saturated is not None:
+            open_bounds(bounds, tuple(_rows_transposed(c, None, ry, first, stop, nj)
+                                      for c in saturated[0]), saturated[1])
         setup = block_setup(left[rows], right[rows], lmask[rows], rmask[rows], textured[rows],
                             dmin, nd, pens, mine["disp"], mine["state"])
         _match_blocks(range(len(setup[4])), bounds, setup, params, mine, work)
@@ -166,16 +174,18 @@ def _match_chunks(todo, images: tuple, params: tuple, out: dict) -> None:
             np.copyto(mine["disp"], -1, where=mine["state"] >= BORDER)
 
 
-def _rows_transposed(grey: np.ndarray, mask: np.ndarray, ry: int, first: int, stop: int,
+def _rows_transposed(grey: np.ndarray, mask: np.ndarray | None, ry: int, first: int, stop: int,
                      nj: int) -> np.ndarray:
-    """(W, nj) uint8: the (H, W) image filled outside ``mask`` (:func:`fill_outside`), its
-    row ``first + j - ry`` (clamped to the image) as column ``j``, as :func:`.lanes.image_bounds`
-    reads it for the rows ``first .. stop - 1``. The clamped rows by one border copy (no
-    gather, no fill when every pixel is valid)."""
+    """(W, nj) uint8: the (H, W) image filled outside ``mask`` (:func:`fill_outside`; None:
+    not filled), its row ``first + j - ry`` (clamped to the image) as column ``j``, as
+    :func:`.lanes.image_bounds` reads it for the rows ``first .. stop - 1``. The clamped rows
+    by one border copy (no gather, no fill when every pixel is valid)."""
     H = grey.shape[0]
     a, b = max(0, first - ry), min(H, stop + ry)  # the image rows the window reaches
-    part, valid = grey[a:b], mask[a:b]
-    filled = np.ascontiguousarray(part) if valid.all() else fill_outside(part, valid)
+    part = grey[a:b]
+    valid = None if mask is None else mask[a:b]
+    filled = (np.ascontiguousarray(part) if valid is None or valid.all()
+              else fill_outside(part, valid))
     top = ry - (first - a)  # rows clamped to the image's first row
     return cv2.transpose(cv2.copyMakeBorder(filled, top, nj - (b - a) - top, 0, 0,
                                             cv2.BORDER_REPLICATE))
