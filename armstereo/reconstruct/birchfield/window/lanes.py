@@ -270,6 +270,7 @@ def lane_backtrack(geo, phi, nodes, pen_l, rew, pen_r, slant, dmin, row0, ints, 
     pixels before the first match or after the last its ``k`` and BORDER, and the row's
     valid pixels outside the programme's range the nearest decoded disparity."""
     W = disp.shape[1]
+    dloc = ints[1]
     for lane in range(LANES):
         if not geo[ACTIVE, lane]:
             continue
@@ -278,48 +279,38 @@ def lane_backtrack(geo, phi, nodes, pen_l, rew, pen_r, slant, dmin, row0, ints, 
         nx = u1 - r0
         off = r0 + dmin  # image column of local left pixel 0
         x_lo = x0 - r0
+        lo = off + x_lo
         r = row0 + lane
         drow, srow = disp[r], state[r]
+        walk = (nodes[r0:, :, lane], r1 - r0, phi[r0:, :, lane], pen_l[r0:, lane],
+                rew[r0:, lane], pen_r[r0:, lane], slant)
         if nx <= W:  # always with dmin >= 0: decode straight into the row
-            lo, n = off + x_lo, nx - x_lo
-            ok = _walk(nodes[r0:, :, lane], r1 - r0, phi[r0:, :, lane], pen_l[r0:, lane],
-                       rew[r0:, lane], pen_r[r0:, lane], slant, x_lo, drow[lo:lo + n],
-                       srow[lo:lo + n])
-            if not ok:
+            if not _walk(*walk, x_lo, drow[lo:off + nx], srow[lo:off + nx]):
                 continue
-            for c in range(la, min2(lo, W)):
-                drow[c] = drow[lo]
-            for c in range(off + nx, min2(lb, W)):
-                drow[c] = drow[off + nx - 1]
-        elif _walk(nodes[r0:, :, lane], r1 - r0, phi[r0:, :, lane], pen_l[r0:, lane],
-                   rew[r0:, lane], pen_r[r0:, lane], slant, 0, ints[1, :nx], sloc[:nx]):
+            end = off + nx
+            first, last = drow[lo], drow[end - 1]
+        else:
             # a negative dmin can give a lane more left pixels than the image has columns:
-            # only the first W are decoded, as if the match sequence ended there
-            _store_cut(ints[1], sloc, W, la, lb, off, x_lo, drow, srow)
-
-
-@njit(cache=True, inner=True)
-def _store_cut(dloc, sloc, nxs, la, lb, off, x_lo, disp_row, state_row):
-    """Copy a lane's decoded pixels (local ``dloc``/``sloc``) but its first ``nxs`` into
-    its row, decoded as :func:`..common.scanline.store_row` decodes the sequence cut there:
-    the pixels after its last match below ``nxs`` become BORDER, and with no match below
-    ``nxs`` none is decoded."""
-    last = nxs - 1
-    while last >= 0 and sloc[last] != MATCHED:
-        last -= 1
-    if last < 0:
-        for x in range(nxs):
-            dloc[x] = -1
-            sloc[x] = BORDER
-    for x in range(last + 1, nxs):
-        sloc[x] = BORDER
-    for x in range(x_lo, nxs):
-        disp_row[off + x] = dloc[x]
-        state_row[off + x] = sloc[x]
-    for x in range(la, min2(off + x_lo, disp_row.shape[0])):
-        disp_row[x] = dloc[x_lo]
-    for x in range(off + nxs, min2(lb, disp_row.shape[0])):
-        disp_row[x] = dloc[nxs - 1]
+            # only the first W are decoded, as if the sequence ended there (the pixels after
+            # its last match below W become BORDER; with none, nothing is decoded)
+            if not _walk(*walk, np.int64(0), dloc[:nx], sloc[:nx]):
+                continue
+            m = W - 1
+            while m >= 0 and sloc[m] != MATCHED:
+                m -= 1
+            for x in range(m + 1, W):
+                sloc[x] = BORDER
+                if m < 0:
+                    dloc[x] = -1
+            for x in range(x_lo, W):
+                drow[off + x] = dloc[x]
+                srow[off + x] = sloc[x]
+            end = off + W
+            first, last = dloc[x_lo], dloc[W - 1]
+        for c in range(la, min2(lo, W)):
+            drow[c] = first
+        for c in range(end, min2(lb, W)):
+            drow[c] = last
 
 
 @njit(cache=True, inner=True)
