@@ -66,10 +66,15 @@ def equalize(grey_l: np.ndarray, grey_r: np.ndarray, lmask: np.ndarray, rmask: n
     # costs about a millisecond more)
     half = [cv2.resize(g[:2 * h, :2 * w], (w, h), interpolation=cv2.INTER_AREA)
             for g in (grey_l, grey_r)]
-    masks = [cv2.resize(m[:2 * h, :2 * w].view(np.uint8), (w, h),
-                        interpolation=cv2.INTER_NEAREST) > 0 for m in (lmask, rmask)]
+    if lmask.all() and rmask.all():  # no rectification fill: nothing to resize or test
+        rows = np.ones((-(-h // ROW_STEP), w), np.bool_)
+        masks, row_masks = None, (rows, rows)
+    else:
+        masks = [cv2.resize(m[:2 * h, :2 * w].view(np.uint8), (w, h),
+                            interpolation=cv2.INTER_NEAREST) > 0 for m in (lmask, rmask)]
+        row_masks = tuple(m[::ROW_STEP] for m in masks)
     d = first_pass(half[0][::ROW_STEP], half[1][::ROW_STEP], n, min_disparity=lo,
-                   left_mask=masks[0][::ROW_STEP], right_mask=masks[1][::ROW_STEP])
+                   left_mask=row_masks[0], right_mask=row_masks[1])
     samples = _samples(half, masks, d)
     if samples is None:
         return grey_r
@@ -132,7 +137,8 @@ def _percentile_below(v: np.ndarray, q: float, limit: float) -> bool:
 
 def _samples(half, masks, d):
     """``(y, x_r, log L, log R)`` (half-size pixels) of the matched, valid, well-exposed
-    pixels of the first pass's rows; None if fewer than MIN_SAMPLES."""
+    pixels of the first pass's rows; None if fewer than MIN_SAMPLES. ``masks``: the
+    half-size validity masks (None: every pixel valid)."""
     w = half[0].shape[1]
     blur = [cv2.GaussianBlur(g, (0, 0), SAMPLE_BLUR / 2)[::ROW_STEP].astype(np.float32)
             for g in half]
@@ -141,8 +147,9 @@ def _samples(half, masks, d):
     ok = (xr >= 0) & (xr < w)
     iy, xs, xr = iy[ok], xs[ok], xr[ok]
     a, b = blur[0][iy, xs], blur[1][iy, xr]
-    ok = ((a > DARK) & (b > DARK) & (a < BRIGHT) & (b < BRIGHT)
-          & masks[0][::ROW_STEP][iy, xs] & masks[1][::ROW_STEP][iy, xr])
+    ok = (a > DARK) & (b > DARK) & (a < BRIGHT) & (b < BRIGHT)
+    if masks is not None:
+        ok &= masks[0][::ROW_STEP][iy, xs] & masks[1][::ROW_STEP][iy, xr]
     if np.count_nonzero(ok) < MIN_SAMPLES:
         return None
     return iy[ok] * ROW_STEP, xr[ok], np.log(a[ok]), np.log(b[ok])
