@@ -5,7 +5,9 @@ row ``r`` is matched on the longest run of valid pixels of each image; with the 
 ``[dmin, dmin + nd - 1]`` the left pixel ``xL`` is indexed by ``u = xL - dmin`` so that the
 programme sees disparity indices ``k = u - xR`` in ``[0, nd)`` (:func:`row_geometry`).
 :func:`begin_row` resets a row's outputs, :func:`store_row` decodes its match sequence
-(:func:`decode_matches`, the reference code's policy) into the image row.
+(:func:`decode_matches`, the reference code's policy) into the image row. The default
+matcher's backtrack (:func:`..window.lanes.lane_backtrack`) decodes by the same policy while
+it walks, without a match sequence.
 """
 
 from __future__ import annotations

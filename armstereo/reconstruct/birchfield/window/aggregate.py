@@ -245,4 +245,4 @@ def _lane_work(W: int, nd: int, rx: int, ry: int) -> tuple:
     costs = (np.empty((nd, _vector_rows(ry)), f32), np.empty((2, L), f32),
              np.empty((2 * rx + 1, nd, L), f32), np.empty((W, nd, L), f32))
     return (costs, np.full((W + 1, nd + 2, L), INF, f32), np.empty((W + nd + 1, L), f32),
-            np.empty(L, f32), np.empty((2, W + nd), np.int32), np.empty(W, np.uint8))
+            np.empty(L, f32), np.empty((2, W + nd), np.int32), np.empty(W + nd, np.uint8))

@@ -41,8 +41,13 @@ import numpy as np
 from armstereo.reconstruct.birchfield.common.cost import INF
 from armstereo.reconstruct.birchfield.common.jit import njit
 from armstereo.reconstruct.birchfield.common.minmax import max2, min2
-from armstereo.reconstruct.birchfield.common.scanline import store_row
-from armstereo.reconstruct.birchfield.common.states import C0, VALID_BELOW
+from armstereo.reconstruct.birchfield.common.states import (
+    BORDER,
+    C0,
+    MATCHED,
+    OCCLUDED,
+    VALID_BELOW,
+)
 from armstereo.reconstruct.birchfield.window.simd import LANES, lanewise, vfloor, vmax, vmin
 
 # rows of the (GEO, LANES) int64 geometry of a block: the valid runs of the left
@@ -256,34 +261,69 @@ def _node_update(b, c0, c1, p2, dk, pl, rw, rb, pr, run, out, slant, inf):
 @njit(cache=True, nogil=True)
 def lane_backtrack(geo, phi, nodes, pen_l, rew, pen_r, slant, dmin, row0, ints, sloc, disp,
                    state):
-    """Walk back each active lane's path (:func:`_walk`) and decode it into its output row.
-    ``nodes``: the node costs of the forward pass (its ``d``); ``ints`` (2, W + nd) int32
-    (a lane has up to W + nd - 1 left pixels) and ``sloc`` (W,) uint8 are scratch."""
-    match, dloc = ints[0], ints[1]
+    """Walk back each active lane's path (:func:`_walk`), decoding it into its output row as
+    it goes. ``nodes``: the node costs of the forward pass (its ``d``); ``ints`` (2, W + nd)
+    int32 (a lane has up to W + nd - 1 left pixels) and ``sloc`` (W + nd,) uint8 are scratch.
+
+    The decoding is :func:`..common.scanline.store_row`'s (the reference code's policy):
+    matched pixels get their ``k``, left-occluded runs the ``k`` of the match before them,
+    pixels before the first match or after the last its ``k`` and BORDER, and the row's
+    valid pixels outside the programme's range the nearest decoded disparity."""
+    W = disp.shape[1]
+    dloc = ints[1]
     for lane in range(LANES):
         if not geo[ACTIVE, lane]:
             continue
+        la, lb = geo[LA, lane], geo[LB, lane]
         r0, r1, x0, u1 = geo[R0, lane], geo[R1, lane], geo[X0, lane], geo[U1, lane]
         nx = u1 - r0
-        if _walk(nodes[r0:, :, lane], r1 - r0, phi[r0:, :, lane], pen_l[r0:, lane],
-                 rew[r0:, lane], pen_r[r0:, lane], slant, nx, match[:nx]):
-            r = row0 + lane
+        off = r0 + dmin  # image column of local left pixel 0
+        x_lo = x0 - r0
+        lo = off + x_lo
+        r = row0 + lane
+        drow, srow = disp[r], state[r]
+        walk = (nodes[r0:, :, lane], r1 - r0, phi[r0:, :, lane], pen_l[r0:, lane],
+                rew[r0:, lane], pen_r[r0:, lane], slant)
+        if nx <= W:  # always with dmin >= 0: decode straight into the row
+            if not _walk(*walk, x_lo, drow[lo:off + nx], srow[lo:off + nx]):
+                continue
+            end = off + nx
+            first, last = drow[lo], drow[end - 1]
+        else:
             # a negative dmin can give a lane more left pixels than the image has columns:
-            # only the first W are decoded (as before ``ints`` was widened, when the walk
-            # wrote the rest past the end of its row)
-            store_row(match[:min2(nx, disp.shape[1])], geo[LA, lane], geo[LB, lane], r0,
-                       x0 - r0, dmin, dloc, sloc, disp[r], state[r])
+            # only the first W are decoded, as if the sequence ended there (the pixels after
+            # its last match below W become BORDER; with none, nothing is decoded)
+            if not _walk(*walk, np.int64(0), dloc[:nx], sloc[:nx]):
+                continue
+            m = W - 1
+            while m >= 0 and sloc[m] != MATCHED:
+                m -= 1
+            for x in range(m + 1, W):
+                sloc[x] = BORDER
+                if m < 0:
+                    dloc[x] = -1
+            for x in range(x_lo, W):
+                drow[off + x] = dloc[x]
+                srow[off + x] = sloc[x]
+            end = off + W
+            first, last = dloc[x_lo], dloc[W - 1]
+        for c in range(la, min2(lo, W)):
+            drow[c] = first
+        for c in range(end, min2(lb, W)):
+            drow[c] = last
 
 
 @njit(cache=True, inner=True)
-def _walk(nodes, ny, phi, pen_l, rew, pen_r, slant, nx, match):
+def _walk(nodes, ny, phi, pen_l, rew, pen_r, slant, x_lo, disp, state):
     """The backtrack of one lane (module doc), in the row's local coordinates: ``nodes[y, k]``
     the node costs, ``phi`` padded as in the forward pass, ``pen_r[y]``
     the right-occlusion penalty after right pixel ``y``. Same tests in the same order (the
-    same tie-breaking)."""
+    same tie-breaking). Decodes the path into ``disp``/``state``, the left pixels ``x_lo ..
+    x_lo + len(disp) - 1`` (local): the path visits the left pixels from the right, so each
+    match fills the unmatched run after it. False (outputs as they were) if there is no
+    path."""
     nd = phi.shape[1] - 2
-    for x in range(match.shape[0]):
-        match[x] = -1
+    nx = x_lo + disp.shape[0]
     best = np.float32(VALID_BELOW)
     y = -1
     k = -1
@@ -295,8 +335,18 @@ def _walk(nodes, ny, phi, pen_l, rew, pen_r, slant, nx, match):
             k = k2
     if k < 0:
         return False
+    hi = nx  # the pixels from hi on are decoded
     while True:
-        match[y + k] = y
+        xl = y + k
+        # the unmatched pixels after this match: occluded, or BORDER after the last match
+        after = OCCLUDED if hi < nx else BORDER
+        for x in range(max2(xl + 1, x_lo), hi):
+            disp[x - x_lo] = k
+            state[x - x_lo] = after
+        if xl >= x_lo:
+            disp[xl - x_lo] = k
+            state[xl - x_lo] = MATCHED
+        hi = min2(hi, xl)
         if y == 0:
             break
         before = phi[y + 1, k + 1] - nodes[y, k] + rew[y + k]
@@ -326,8 +376,14 @@ def _walk(nodes, ny, phi, pen_l, rew, pen_r, slant, nx, match):
             if 0 <= y2 < ny and phi[y2 + 1, k2 + 1] + pen_r[y2] == before:
                 kb = k2
                 break
-        if kb < 0:  # cannot happen with exact costs; end the walk rather than loop
+        if kb < 0:  # cannot happen with exact costs: undo the decoding, end the walk
+            for x in range(disp.shape[0]):
+                disp[x] = -1
+                state[x] = BORDER
             return False
         y = x - kb
         k = kb
+    for x in range(x_lo, hi):  # before the first match: its disparity, BORDER
+        disp[x - x_lo] = k
+        state[x - x_lo] = BORDER
     return True
