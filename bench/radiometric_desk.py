@@ -35,9 +35,12 @@ from drivers.mock.profile import (
     JointErrors,
 )
 
+# the demo's options for each (DemoOptions.matcher_options), with these changes; SGBM twice:
+# as the demo runs it (pre-smoothed, shift-averaged: DEMO_SGBM) and as OpenCV's defaults
 MATCHERS = {"Birchfield-Tomasi": ("birchfield", {}),
             "before issue 26": ("birchfield", {"equalize": False, "plain_fill": None}),
-            "StereoSGBM": ("sgbm", {})}
+            "the demo's SGBM": ("sgbm", {}),
+            "OpenCV's SGBM": ("sgbm", {"presmooth": 0.0, "shifts": 1})}
 
 
 def effects_only(name: str, effects: ImageEffects):
