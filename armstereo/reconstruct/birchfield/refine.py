@@ -290,12 +290,13 @@ def row_rejects(disp, kind, along, reject, before, tolerance, slope, reach, marg
                 lowest = xr
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inner=True)
 def _fill_row(d, b, f, tolerance, slope, support):
     """One row of :func:`.plain.fill_plain` (in place): ``d`` float32 disparities, ``b`` the
     row before the flat test, ``f`` its flat pixels; ``tolerance``/``slope``: float32 values
     as float64 (the anchors' test in float64, the range in float32, as before), ``support``:
-    share of the run. Inlined into :func:`row_rejects` (no kernel of its own to compile)."""
+    share of the run. Not inlined at numba level: that compiled longer (the callee typed
+    again in its caller, bench/results/coldstart.md)."""
     W = d.shape[0]
     tol = np.float32(tolerance)
     x = 0
