@@ -18,9 +18,13 @@ from __future__ import annotations
 
 import cv2
 import numpy as np
-from numba import njit
 
+from armstereo.reconstruct.birchfield.refine import row_rejects
 from armstereo.reconstruct.strips import each_strip, row_strips
+
+_NO_KIND = np.empty((0, 0), np.uint8)  # row_rejects' pixel kinds: not read by its fill mode
+# row_rejects' flags test, use_along, apply, hidden, fill
+_FILL_MODE = (np.bool_(False), np.bool_(False), np.bool_(False), np.bool_(False), np.bool_(True))
 
 
 def fill_plain(disp: np.ndarray, before: np.ndarray, flat: np.ndarray, *, tolerance: float,
@@ -33,13 +37,23 @@ def fill_plain(disp: np.ndarray, before: np.ndarray, flat: np.ndarray, *, tolera
     of a run, 0..1). Strips of rows (and as many of columns) run side by side on ``pool``."""
     H, W = disp.shape
     strips = strips or [(0, H)]
-    args = (np.float32(tolerance), np.float32(slope), np.float64(support))
+    # float32 values, as float64: the kernel's test is in float64, its range in float32
+    args = (np.float64(np.float32(tolerance)), np.float64(np.float32(slope)), np.float64(support))
     each_strip(pool, strips, _fill_strip, disp, before, flat, args)
     each_strip(pool, row_strips(W, len(strips)), _fill_columns, disp, before, flat, args)
 
 
 def _fill_strip(first: int, stop: int, disp, before, flat, args) -> None:
     fill_runs(disp, before, flat, *args, first, stop)
+
+
+def fill_runs(disp: np.ndarray, before: np.ndarray, flat: np.ndarray, tolerance: np.float64,
+              slope: np.float64, support: np.float64, first: int, stop: int) -> None:
+    """Rows ``first .. stop - 1`` of :func:`fill_plain` along the rows (in place): the fill
+    mode of :func:`.birchfield.refine.row_rejects`, which the rejections before it compile
+    anyway (a kernel of its own cost ~0.6 s of first-run compile)."""
+    row_rejects(disp, _NO_KIND, flat, flat, before, tolerance, slope, np.int64(0),
+                np.float64(0.0), support, *_FILL_MODE, np.int64(first), np.int64(stop), flat)
 
 
 def _fill_columns(first: int, stop: int, disp, before, flat, args) -> None:
@@ -51,40 +65,3 @@ def _fill_columns(first: int, stop: int, disp, before, flat, args) -> None:
     f = cv2.transpose(flat[:, cols].view(np.uint8)).view(np.bool_)
     fill_runs(d, b, f, *args, 0, stop - first)
     disp[:, cols] = cv2.transpose(d)
-
-
-@njit(cache=True, nogil=True)
-def fill_runs(disp, before, flat, tolerance, slope, support, first, stop):
-    """Rows ``first .. stop - 1`` of :func:`fill_plain` along the rows (in place)."""
-    W = disp.shape[1]
-    for y in range(first, stop):
-        d = disp[y]
-        b = before[y]
-        f = flat[y]
-        x = 0
-        while x < W:
-            if not f[x]:
-                x += 1
-                continue
-            s = x
-            while x < W and f[x]:
-                x += 1
-            if s == 0 or x == W:  # the run reaches the image's edge: one anchor only
-                continue
-            d_a = d[s - 1]
-            d_b = d[x]
-            gap = x - s + 1
-            if not abs(d_a - d_b) <= tolerance + slope * gap:  # False for NaN anchors
-                continue
-            lo = min(d_a, d_b) - tolerance
-            hi = max(d_a, d_b) + tolerance
-            agree = 0
-            for i in range(s, x):
-                if b[i] >= lo and b[i] <= hi:
-                    agree += 1
-            if agree < support * (x - s):
-                continue
-            step = (d_b - d_a) / np.float32(gap)
-            for i in range(s, x):
-                if np.isnan(d[i]):
-                    d[i] = d_a + step * np.float32(i - s + 1)

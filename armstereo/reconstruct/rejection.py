@@ -167,9 +167,10 @@ def _rows(first: int, stop: int, disp: np.ndarray, kind: np.ndarray | None,
     arrays: not used)."""
     no_kind = np.empty((0, 0), np.uint8)  # read only with kind
     row_rejects(disp, no_kind if kind is None else kind, out if along is None else along, reject,
-                np.float64(tolerance), np.float64(FLAT_SLOPE), np.int64(2 * TEXTURE_WINDOW),
-                np.float64(0.0 if hidden is None else hidden), np.bool_(kind is not None),
-                np.bool_(along is not None), np.bool_(apply), np.bool_(hidden is not None),
+                disp, np.float64(tolerance), np.float64(FLAT_SLOPE),
+                np.int64(2 * TEXTURE_WINDOW), np.float64(0.0 if hidden is None else hidden),
+                np.float64(0.0), np.bool_(kind is not None), np.bool_(along is not None),
+                np.bool_(apply), np.bool_(hidden is not None), np.bool_(False),
                 np.int64(first), np.int64(stop), out)
 
 

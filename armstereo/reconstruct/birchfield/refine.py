@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from armstereo.reconstruct.birchfield.common.jit import njit
+from armstereo.reconstruct.birchfield.common.minmax import max2, min2
 
 
 @njit(cache=True)
@@ -207,11 +208,12 @@ KIND_BREAK, KIND_ANCHOR, KIND_HOLE, KIND_QUERY = 0, 1, 2, 3
 
 
 @njit(cache=True, nogil=True)
-def row_rejects(disp, kind, along, reject, tolerance, slope, reach, margin, test, use_along,
-                apply, hidden, first, stop, out):
+def row_rejects(disp, kind, along, reject, before, tolerance, slope, reach, margin, support,
+                test, use_along, apply, hidden, fill, first, stop, out):
     """Rows ``first .. stop - 1``: the flat pixels a row does not confirm, then those a
-    nearer pixel hides; one kernel for both (and for the test along the columns, run on
-    transposed copies), as each costs its own compile on the first run.
+    nearer pixel hides, or (``fill``) the plain runs :mod:`...plain` fills; one kernel for
+    all (and for the tests along the columns, run on transposed copies), as each kernel
+    costs its own compile on the first run (~0.1 s before its first line of code).
 
     ``test``: ``out`` (bool) is set on the flat pixels whose row does not confirm their
     disparity, and on those without one, and with ``use_along`` cleared where ``along``
@@ -228,6 +230,10 @@ def row_rejects(disp, kind, along, reject, tolerance, slope, reach, margin, test
     the row hides in the right view: ``x - d(x)`` at least ``margin`` pixels right of the
     leftmost ``x' - d(x')`` of the pixels right of it (NaN takes no part). float32 as numpy
     states it: ``float32(x) - d``, ``lowest + float32(margin)``.
+
+    ``fill``: only :func:`_fill_row` on each row, with ``before`` (float32) and ``along`` (the
+    flat pixels); ``tolerance`` and ``slope`` are then float32 values (as float64), ``support``
+    a share. The other modes do not read ``before`` or ``support``.
     """
     W = disp.shape[1]
     nan = np.float32(np.nan)
@@ -235,6 +241,9 @@ def row_rejects(disp, kind, along, reject, tolerance, slope, reach, margin, test
     m = np.float32(margin)
     for y in range(first, stop):
         d = disp[y]
+        if fill:
+            _fill_row(d, before[y], along[y], tolerance, slope, support)
+            continue
         o = out[y]
         r = reject[y]
         if test:
@@ -279,3 +288,41 @@ def row_rejects(disp, kind, along, reject, tolerance, slope, reach, margin, test
                 d[x] = nan
             if xr < lowest:  # NaN takes no part
                 lowest = xr
+
+
+@njit(cache=True, inner=True)
+def _fill_row(d, b, f, tolerance, slope, support):
+    """One row of :func:`.plain.fill_plain` (in place): ``d`` float32 disparities, ``b`` the
+    row before the flat test, ``f`` its flat pixels; ``tolerance``/``slope``: float32 values
+    as float64 (the anchors' test in float64, the range in float32, as before), ``support``:
+    share of the run. Not inlined at numba level: that compiled longer (the callee typed
+    again in its caller, bench/results/coldstart.md)."""
+    W = d.shape[0]
+    tol = np.float32(tolerance)
+    x = 0
+    while x < W:
+        if not f[x]:
+            x += 1
+            continue
+        s = x
+        while x < W and f[x]:
+            x += 1
+        if s == 0 or x == W:  # the run reaches the image's edge: one anchor only
+            continue
+        d_a = d[s - 1]
+        d_b = d[x]
+        gap = x - s + 1
+        if not abs(d_a - d_b) <= tolerance + slope * gap:  # False for NaN anchors
+            continue
+        lo = min2(d_a, d_b) - tol
+        hi = max2(d_a, d_b) + tol
+        agree = 0
+        for i in range(s, x):
+            if b[i] >= lo and b[i] <= hi:
+                agree += 1
+        if agree < support * (x - s):
+            continue
+        step = (d_b - d_a) / np.float32(gap)
+        for i in range(s, x):
+            if np.isnan(d[i]):
+                d[i] = d_a + step * np.float32(i - s + 1)

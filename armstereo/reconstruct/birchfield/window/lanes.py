@@ -131,25 +131,23 @@ def image_bounds(left_t, right_t, bounds):
     ``bounds[i, x, j]``, ``i`` 0..2 left, 3..5 right. ``left_t``/``right_t`` (W, nj) uint8:
     the images transposed, ``[x, j]`` their row ``j - ry`` (clamped to the image; columns past
     ``H + 2 ry`` pad the last block's vectors): the loop over ``j`` then reads and writes
-    contiguously, and LLVM vectorises it."""
+    contiguously, and LLVM vectorises it. The two images in one loop (a tuple indexed by the
+    side), not the loop inlined twice: half the code to compile on the first run."""
     W = left_t.shape[0]
-    for x in range(W):
-        xa, xb = max2(0, x - 1), min2(W - 1, x + 1)
-        _intervals(left_t[x], left_t[xa], left_t[xb], bounds[0, x], bounds[1, x], bounds[2, x])
-        _intervals(right_t[x], right_t[xa], right_t[xb], bounds[3, x], bounds[4, x],
-                   bounds[5, x])
-
-
-@njit(cache=True, inline="always")
-def _intervals(c, before, after, value, lo, hi):
-    for j in range(c.shape[0]):
-        v = np.float32(c[j])
-        a = np.float32(2) * v
-        p = np.float32(before[j]) + v
-        n = v + np.float32(after[j])
-        value[j] = a
-        lo[j] = min2(a, min2(p, n))
-        hi[j] = max2(a, max2(p, n))
+    images = (left_t, right_t)
+    for side in range(2):
+        img = images[side]
+        for x in range(W):
+            c, before, after = img[x], img[max2(0, x - 1)], img[min2(W - 1, x + 1)]
+            value, lo, hi = bounds[3 * side, x], bounds[3 * side + 1, x], bounds[3 * side + 2, x]
+            for j in range(c.shape[0]):
+                v = np.float32(c[j])
+                a = np.float32(2) * v
+                p = np.float32(before[j]) + v
+                n = v + np.float32(after[j])
+                value[j] = a
+                lo[j] = min2(a, min2(p, n))
+                hi[j] = max2(a, max2(p, n))
 
 
 @njit(cache=True, inner=True)
