@@ -3,18 +3,14 @@ and the matcher on Middlebury's Cones when the right view is brighter, darker or
 
 from __future__ import annotations
 
-import json
-
-import cv2
 import numpy as np
 import pytest
 
 from armstereo.evaluation.disparity import evaluate_disparity
-from armstereo.io.disparity import read_disparity
 from armstereo.reconstruct.equalize import equalize
 from armstereo.reconstruct.stereo import EQUALIZE_FIRST_PASS, birchfield
-from tests.support import MIDDLEBURY
 from tests.support.images import texture
+from tests.support.middlebury import load_pair
 
 
 def first_pass(left, right, n, **kw):
@@ -77,11 +73,7 @@ def test_a_pair_too_small_for_the_first_pass_is_left_as_it_is():
 
 
 def cones():
-    folder = MIDDLEBURY / "cones"
-    meta = json.loads((folder / "meta.json").read_text())
-    left, right = (cv2.imread(str(folder / meta[k])) for k in ("left", "right"))
-    gt = read_disparity(folder / meta["gt"], scale=meta["gt_scale"])
-    mask = cv2.imread(str(folder / meta["masks"]["nonocc"]), cv2.IMREAD_GRAYSCALE) > 128
+    left, right, gt, mask, _ = load_pair("cones")
     return left, right, gt, mask, 63
 
 

@@ -2,16 +2,12 @@
 
 from __future__ import annotations
 
-import json
-
-import cv2
 import numpy as np
 
 from armstereo.evaluation.disparity import evaluate_disparity
-from armstereo.io.disparity import read_disparity
 from armstereo.reconstruct.saturation import BOTTOM, OPEN, TOP, open_bounds, saturation_codes
 from armstereo.reconstruct.stereo import birchfield
-from tests.support import MIDDLEBURY
+from tests.support.middlebury import bench_window, load_pair
 
 
 def test_no_saturated_pixel_gives_no_codes():
@@ -48,21 +44,12 @@ def test_open_bounds_opens_only_the_coded_side():
     assert np.array_equal(bounds[3:], before[3:])  # the right image had no code
 
 
-def _tsukuba():
-    folder = MIDDLEBURY / "tsukuba"
-    meta = json.loads((folder / "meta.json").read_text())
-    left = cv2.imread(str(folder / meta["left"]))
-    right = cv2.imread(str(folder / meta["right"]))
-    gt = read_disparity(folder / meta["gt"], scale=meta["gt_scale"])
-    mask = cv2.imread(str(folder / meta["masks"]["nonocc"]), cv2.IMREAD_GRAYSCALE) > 128
-    return left, right, gt, mask, -(-(meta["max_disp"] + 1) // 16) * 16 - 1
-
-
 def test_a_brighter_view_that_clips_keeps_its_matches():
     """The right view x1.25 clips tsukuba's lamp and statue: bad-2 2.84 -> 6.10 % with the
     clipped levels compared as values, 3.73 % when they are read as bounds (measured; the
     unchanged pair is not affected, bench/results/radiometric.md)."""
-    left, right, gt, mask, n = _tsukuba()
+    left, right, gt, mask, meta = load_pair("tsukuba")
+    n = bench_window(meta)
     bright = np.clip(right.astype(np.float32) * 1.25, 0, 255).round().astype(np.uint8)
     bad = {flag: evaluate_disparity(birchfield(left, bright, n, censor_saturated=flag), gt,
                                     mask, exclude_left=n)["bad2"] for flag in (True, False)}

@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-import json
 import subprocess
 import sys
 
@@ -13,11 +12,10 @@ import pytest
 
 from armstereo.errors import StereoError
 from armstereo.evaluation.disparity import evaluate_disparity
-from armstereo.io.disparity import read_disparity
 from armstereo.reconstruct import stereo
 from armstereo.reconstruct.stereo import PAPER_OPTIONS, birchfield, compute_disparity, sgbm
-from tests.support import MIDDLEBURY
 from tests.support.images import box_pair, texture
+from tests.support.middlebury import load_pair
 
 # Measured 3.49 % (bench/results/stereo.md); the bound leaves room for tie-breaking changes,
 # not for a broken matcher.
@@ -232,12 +230,7 @@ def test_unknown_method_is_a_stereo_error():
 # --- a real pair ----------------------------------------------------------------------------
 
 def test_tsukuba_bad2_below_the_measured_bound():
-    folder = MIDDLEBURY / "tsukuba"
-    meta = json.loads((folder / "meta.json").read_text())
-    left = cv2.imread(str(folder / meta["left"]))
-    right = cv2.imread(str(folder / meta["right"]))
-    gt = read_disparity(folder / meta["gt"], scale=meta["gt_scale"])
-    mask = cv2.imread(str(folder / meta["masks"]["nonocc"]), cv2.IMREAD_GRAYSCALE) > 128
+    left, right, gt, mask, meta = load_pair("tsukuba")
     disp = birchfield(left, right, meta["max_disp"])
     scores = evaluate_disparity(disp, gt, mask, exclude_left=meta["max_disp"])
     assert scores["bad2"] < TSUKUBA_BAD2_BOUND

@@ -3,19 +3,15 @@ margin (``occlusion_margin``), issue 14 item 2 (Cones)."""
 
 from __future__ import annotations
 
-import json
-
-import cv2
 import numpy as np
 import pytest
 
 from armstereo.errors import StereoError
 from armstereo.evaluation.disparity import evaluate_disparity
-from armstereo.io.disparity import read_disparity
 from armstereo.reconstruct import rejection, stereo, stereo_inputs
 from armstereo.reconstruct.stereo import PAPER_OPTIONS, birchfield
-from tests.support import MIDDLEBURY
 from tests.support.images import box_pair, texture
+from tests.support.middlebury import bench_window, load_pair
 
 
 @pytest.mark.parametrize("cap", [1, 12, 300])
@@ -68,13 +64,8 @@ def test_the_papers_matcher_matches_raw_intensities_with_its_reward():
 
 
 def cones():
-    folder = MIDDLEBURY / "cones"
-    meta = json.loads((folder / "meta.json").read_text())
-    left = cv2.imread(str(folder / meta["left"]))
-    right = cv2.imread(str(folder / meta["right"]))
-    gt = read_disparity(folder / meta["gt"], scale=meta["gt_scale"])
-    mask = cv2.imread(str(folder / meta["masks"]["nonocc"]), cv2.IMREAD_GRAYSCALE) > 128
-    return left, right, gt, mask, -(-(meta["max_disp"] + 1) // 16) * 16 - 1
+    left, right, gt, mask, meta = load_pair("cones")
+    return left, right, gt, mask, bench_window(meta)
 
 
 def test_edges_sharpen_the_depth_edges_of_cones():

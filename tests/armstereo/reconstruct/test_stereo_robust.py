@@ -4,7 +4,6 @@ uncached fallback of the kernels, and per-pair Middlebury bad-2 bounds."""
 
 from __future__ import annotations
 
-import json
 import logging
 
 import cv2
@@ -29,6 +28,7 @@ from armstereo.reconstruct.birchfield.window.lanes import LANES
 from armstereo.reconstruct.stereo import PAPER_OPTIONS, birchfield
 from tests.support import MIDDLEBURY
 from tests.support.images import box_pair, texture
+from tests.support.middlebury import bench_window, load_pair
 
 # bad-2 with the defaults, measured 2.84 / 0.86 / 6.35 / 4.12 % since the brightness
 # equalisation and the plain fill (bench/results/radiometric.md, "unchanged"); the bounds
@@ -37,13 +37,7 @@ BAD2_BOUNDS = {"tsukuba": 0.035, "venus": 0.012, "teddy": 0.075, "cones": 0.048}
 
 
 def middlebury(name):
-    folder = MIDDLEBURY / name
-    meta = json.loads((folder / "meta.json").read_text())
-    left = cv2.imread(str(folder / meta["left"]))
-    right = cv2.imread(str(folder / meta["right"]))
-    gt = read_disparity(folder / meta["gt"], scale=meta["gt_scale"])
-    mask = cv2.imread(str(folder / meta["masks"]["nonocc"]), cv2.IMREAD_GRAYSCALE) > 128
-    return left, right, gt, mask, meta
+    return load_pair(name)
 
 
 # --- the kernel -----------------------------------------------------------------------------
@@ -288,7 +282,7 @@ def test_kernels_compile_in_memory_with_one_warning_when_nothing_can_cache(monke
 @pytest.mark.parametrize("name", list(BAD2_BOUNDS))
 def test_middlebury_bad2_below_the_measured_bound(name):
     left, right, gt, mask, meta = middlebury(name)
-    n = -(-(meta["max_disp"] + 1) // 16) * 16 - 1  # the benchmark's window
+    n = bench_window(meta)
     disp = birchfield(left, right, n)
     scores = evaluate_disparity(disp, gt, mask, exclude_left=n)
     assert scores["bad2"] < BAD2_BOUNDS[name]
