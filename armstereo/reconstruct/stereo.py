@@ -176,6 +176,8 @@ def birchfield(left: np.ndarray, right: np.ndarray, max_disparity: int,
         # the photo-consistency check reads the grey images, the sub-pixel steps the
         # normalised ones (the views' brightness may differ) without the edges
         gray = o.color == "gray"
+        if gray:  # once: the saturation codes, the equalisation and the inputs all read it
+            left, right = grey(left)[:, :, None], grey(right)[:, :, None]
         saturated = _saturated(left, right, o)  # what the recorded levels were, before
         if o.equalize and gray:
             left, right = _equalized(left, right, lmask, rmask, o, min_disparity,
